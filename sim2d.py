@@ -1,0 +1,536 @@
+"""The planar modular-robot world: designs, physics, state, observation, reward.
+
+Paper (Whitman & Choset, "Learning Modular Robot Locomotion from
+Demonstrations"): Sec. III-A "Problem formulation" (state s, observation
+function O, reward r, initial-state distribution p(s)), Sec. III-B "Gather
+trajectories with random actions" (spline actions) and Sec. IV "Experiments"
+(1/60 s physics steps, one action held for 5 of them, distance in 200 steps).
+The paper uses IsaacGym in 3-D; this is a pymunk side view (y up, +x forward).
+
+    python sim2d.py --design hexapod --action random --gif hexapod.gif
+    python sim2d.py --bench
+
+Conventions used by every other file
+------------------------------------
+* A design is six ports, each 'l' (leg), 'w' (wheel) or 'n' (none), in the
+  paper authors' order: 0 front-left, 1 middle-left, 2 rear-left, 3 rear-right,
+  4 middle-right, 5 front-right.  Ports i and 5-i sit at the same place along
+  the body (left and right); in the plane they overlap and touch only the ground.
+* Joint angle = child angle - parent angle, counter-clockwise positive (y up,
+  +x forward).  A hip at 0 hangs its thigh straight down; a positive hip swings
+  the foot forward.  A wheel turning at a negative rate rolls the robot forward.
+* The flat state vector (metres, radians, seconds), grouped by module type:
+      [x, y, pitch, vx, vy, pitch_rate,                 body      (6)
+       q_hip, q_knee, dq_hip, dq_knee  for each leg,    legs      (4 each)
+       dq_wheel                        for each wheel]  wheels    (1 each)
+  limbs of one type in ascending port order.  Actions (normalised joint-velocity
+  commands in [-1, 1]) use the same grouping: [hip, knee] per leg, then one
+  drive command per wheel.
+* The observation (the paper's O) is the state without x, vx and vy, plus
+  Gaussian sensor noise, split per module the way the GNN consumes it:
+      {"body": (N, 3) [y, pitch, pitch_rate],
+       "leg": (N, n_legs, 4), "wheel": (N, n_wheels, 1)}
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk
+import pymunk.batch
+import torch
+
+# ----------------------------------------------------------------------------
+# Physics constants, all in one place.  Internal units: cm, kg, s.
+# ----------------------------------------------------------------------------
+GRAVITY = 981.0            # cm/s^2
+PHYSICS_DT = 1.0 / 60.0    # s, one pymunk step (the paper's simulator step)
+STEPS_PER_ACTION = 5       # physics steps one action is held (paper: 5 x 1/60 s)
+CONTROL_DT = PHYSICS_DT * STEPS_PER_ACTION   # 1/12 s per control step
+SOLVER_ITERATIONS = 10     # pymunk's default; 20 and 30 cost 25-45 % more and
+                           # changed nothing we measured except chaotic edge cases
+BODY_LENGTH, BODY_HEIGHT, BODY_MASS = 90.0, 16.0, 8.0     # cm, cm, kg
+PORT_X = (38.0, 0.0, -38.0)  # cm, hip/axle x in the body frame: front, middle, rear
+MOUNT_Y = -BODY_HEIGHT / 2   # cm, hips and axles sit on the body's underside
+THIGH, SHIN = 18.0, 18.0     # cm, leg link lengths
+LINK_MASS = 0.5              # kg per leg link
+LINK_RADIUS = 2.0            # cm, thickness of a link segment
+FOOT_RADIUS = 2.5            # cm, round foot at the end of the shin
+HIP_NOMINAL, KNEE_NOMINAL = 0.5, -1.0   # rad: the foot sits right under the hip
+HIP_LIMITS, KNEE_LIMITS = (-0.6, 1.4), (-2.2, -0.1)   # rad (RotaryLimitJoint)
+# Wheel radius = standing height of a nominal leg, so every design stands level.
+WHEEL_RADIUS = (THIGH + SHIN) * math.cos(HIP_NOMINAL) + FOOT_RADIUS   # ~34.1 cm
+WHEEL_MASS = 1.0             # kg, same as one leg (two links)
+LEG_MAX_SPEED = 6.0          # rad/s at action 1 (hip and knee)
+WHEEL_MAX_SPEED = 3.5        # rad/s at action 1: 3.5 * 34.1 cm = 1.19 m/s, close to
+                             # the hexapod's tripod gait (see README, "Physics")
+LEG_MAX_TORQUE = 4e5         # kg cm^2/s^2, motor max_force (unbounded if unset)
+WHEEL_MAX_TORQUE = 2e5
+FRICTION = 1.0               # ground, feet, wheels and body
+GROUND_RADIUS = 1.0          # cm; the ground is a finite, very long segment
+GROUND_X = (-5000.0, 20000.0)   # cm: 50 m behind to 200 m ahead of the start
+FLIP_PITCH = math.pi / 2     # rad: |pitch| beyond this counts as flipped
+ROBOT_CAT, GROUND_CAT = 0b01, 0b10   # collision categories: limbs touch only ground
+
+# Sensor noise of the observation function O (standard deviations).
+OBS_NOISE_BODY = (0.005, 0.01, 0.05)      # y (m), pitch (rad), pitch rate (rad/s)
+OBS_NOISE_LEG = (0.01, 0.01, 0.05, 0.05)  # joint angles (rad), joint rates (rad/s)
+OBS_NOISE_WHEEL = (0.05,)                 # wheel rate (rad/s)
+
+# Perturbation of initial states around the nominal pose (half-widths of uniform draws).
+INIT_JOINT = 0.15          # rad, leg joint angles
+INIT_PITCH = 0.05          # rad
+INIT_DROP = 0.02           # m, extra height above touching the ground
+INIT_BODY_VEL = 0.05       # m/s
+INIT_PITCH_RATE = 0.1      # rad/s
+INIT_JOINT_VEL = 0.2       # rad/s
+
+# Reward weights (Sec. III-E): forward progress in metres dominates.
+W_PITCH = 0.02             # per rad^2 of pitch
+W_EFFORT = 0.002           # per mean squared normalised action
+W_POSE = 0.005             # per mean squared leg-joint distance from nominal (rad^2)
+
+CM = 0.01                  # metres per cm: the state vector is in metres
+
+NAMED_DESIGNS = {
+    "hexapod": "llllll",
+    "car": "wnwwnw",
+    "leg_leg_wheel": "llwwll",
+    "leg_none_wheel": "lnwwnl",
+}
+LIMB_TYPES = {"l": "leg", "w": "wheel"}
+LEG_DIM, WHEEL_DIM, BODY_DIM = 4, 1, 6       # state entries per module
+LEG_OBS_DIM, WHEEL_OBS_DIM, BODY_OBS_DIM = 4, 1, 3
+LEG_ACT_DIM, WHEEL_ACT_DIM = 2, 1
+
+
+# ----------------------------------------------------------------------------
+# Designs and the design graph
+# ----------------------------------------------------------------------------
+def parse_design(design: str) -> str:
+    """Return the six-letter port code of a design name or code.
+
+    >>> parse_design("leg-none-wheel")
+    'lnwwnl'
+    """
+    key = design.strip().lower().replace("-", "_")
+    if key in NAMED_DESIGNS:
+        return NAMED_DESIGNS[key]
+    code = key.replace("_", "")
+    if len(code) == 6 and set(code) <= set("lwn"):
+        if code == "nnnnnn":
+            raise ValueError(f"design {design!r} has no limbs: at least one port must be 'l' or 'w'")
+        return code
+    raise ValueError(
+        f"unknown design {design!r}: use one of {', '.join(NAMED_DESIGNS)} or six letters "
+        "from l (leg), w (wheel), n (none), ports front-left to front-right, e.g. lnwwnl")
+
+
+def design_name(code: str) -> str:
+    """The readable name of a code (the named design, or the code itself)."""
+    return next((name for name, c in NAMED_DESIGNS.items() if c == code), code)
+
+
+def all_designs() -> list[str]:
+    """All 3^6 - 1 = 728 codes with at least one limb."""
+    return ["".join(p) for p in itertools.product("lwn", repeat=6) if set(p) != {"n"}]
+
+
+@dataclass(frozen=True)
+class DesignGraph:
+    """A design as a graph: one body node with a child node per limb.
+
+    Node 0 is the body; nodes 1.. are the legs (ascending port), then the
+    wheels (ascending port), the order of the state, observation and action.
+    """
+
+    code: str
+
+    @property
+    def name(self) -> str:
+        return design_name(self.code)
+
+    @property
+    def leg_ports(self) -> tuple[int, ...]:
+        return tuple(i for i, c in enumerate(self.code) if c == "l")
+
+    @property
+    def wheel_ports(self) -> tuple[int, ...]:
+        return tuple(i for i, c in enumerate(self.code) if c == "w")
+
+    @property
+    def n_legs(self) -> int:
+        return len(self.leg_ports)
+
+    @property
+    def n_wheels(self) -> int:
+        return len(self.wheel_ports)
+
+    @property
+    def nodes(self) -> list[tuple[str, int | None]]:
+        """(type, port) per node: [("body", None), ("leg", 0), ..., ("wheel", 2), ...]."""
+        return ([("body", None)] + [("leg", p) for p in self.leg_ports]
+                + [("wheel", p) for p in self.wheel_ports])
+
+    @property
+    def edges(self) -> list[tuple[int, int]]:
+        """(body node, limb node) per limb: the design graph is a star."""
+        return [(0, k) for k in range(1, 1 + self.n_legs + self.n_wheels)]
+
+    @property
+    def state_dim(self) -> int:
+        return BODY_DIM + LEG_DIM * self.n_legs + WHEEL_DIM * self.n_wheels
+
+    @property
+    def action_dim(self) -> int:
+        return LEG_ACT_DIM * self.n_legs + WHEEL_ACT_DIM * self.n_wheels
+
+    @property
+    def obs_dim(self) -> int:
+        return BODY_OBS_DIM + LEG_OBS_DIM * self.n_legs + WHEEL_OBS_DIM * self.n_wheels
+
+
+def design_graph(design: str | DesignGraph) -> DesignGraph:
+    """The design graph of a name or code (a DesignGraph passes through)."""
+    return design if isinstance(design, DesignGraph) else DesignGraph(parse_design(design))
+
+
+# ----------------------------------------------------------------------------
+# State, observation and reward: plain slicing, so they work on numpy arrays
+# and torch tensors alike (torch for the model roll-outs, with gradients).
+# ----------------------------------------------------------------------------
+def split_state(s, graph: DesignGraph) -> dict:
+    """Flat state (..., S) -> {"body": (..., 6), "leg": (..., L, 4), "wheel": (..., W, 1)}."""
+    nl, nw = graph.n_legs, graph.n_wheels
+    legs = s[..., BODY_DIM:BODY_DIM + LEG_DIM * nl]
+    wheels = s[..., BODY_DIM + LEG_DIM * nl:]
+    return {"body": s[..., :BODY_DIM],
+            "leg": legs.reshape(*s.shape[:-1], nl, LEG_DIM),
+            "wheel": wheels.reshape(*s.shape[:-1], nw, WHEEL_DIM)}
+
+
+def split_action(a, graph: DesignGraph) -> dict:
+    """Flat action (..., A) -> {"leg": (..., L, 2), "wheel": (..., W, 1)}."""
+    nl, nw = graph.n_legs, graph.n_wheels
+    return {"leg": a[..., :LEG_ACT_DIM * nl].reshape(*a.shape[:-1], nl, LEG_ACT_DIM),
+            "wheel": a[..., LEG_ACT_DIM * nl:].reshape(*a.shape[:-1], nw, WHEEL_ACT_DIM)}
+
+
+def observe(s, graph: DesignGraph, noise: dict | None = None) -> dict:
+    """The observation function O: drop x, vx, vy; add sensor noise.
+
+    `noise` holds standard-normal draws shaped like the result (or None for a
+    noiseless observation); they are scaled by OBS_NOISE_* here.
+    """
+    parts = split_state(s, graph)
+    body = parts["body"][..., [1, 2, 5]]                 # (..., 3) y, pitch, pitch_rate
+    obs = {"body": body, "leg": parts["leg"], "wheel": parts["wheel"]}
+    if noise is not None:
+        like = torch.as_tensor if isinstance(s, torch.Tensor) else np.asarray
+        std = {"body": like(OBS_NOISE_BODY), "leg": like(OBS_NOISE_LEG), "wheel": like(OBS_NOISE_WHEEL)}
+        obs = {k: v + std[k] * noise[k] for k, v in obs.items()}
+    return obs
+
+
+def obs_noise_like(s, graph: DesignGraph, rng: np.random.Generator | None = None) -> dict:
+    """Standard-normal draws for `observe`, from a numpy rng or (tensors) torch."""
+    lead = tuple(s.shape[:-1])
+    shapes = {"body": lead + (BODY_OBS_DIM,), "leg": lead + (graph.n_legs, LEG_OBS_DIM),
+              "wheel": lead + (graph.n_wheels, WHEEL_OBS_DIM)}
+    if isinstance(s, torch.Tensor):
+        return {k: torch.randn(v, dtype=s.dtype) for k, v in shapes.items()}
+    return {k: rng.standard_normal(v) for k, v in shapes.items()}
+
+
+def nominal_joint_angles(graph: DesignGraph):
+    """(L, 2) nominal [hip, knee] per leg."""
+    return np.tile([HIP_NOMINAL, KNEE_NOMINAL], (graph.n_legs, 1))
+
+
+def reward(s, a, s_next, graph: DesignGraph) -> torch.Tensor:
+    """r(s_t, a_t, s_t+1) (Sec. III-E), one value per robot, differentiable.
+
+    Forward progress in metres, minus small penalties on pitch, control effort
+    and leg-joint distance from the nominal pose.  Summed over 200 control
+    steps the progress term is the paper's metric, distance travelled.
+    s, s_next: (..., S) tensors; a: (..., A) normalised actions.
+    """
+    progress = s_next[..., 0] - s[..., 0]                              # (...,) metres
+    pitch_cost = W_PITCH * s_next[..., 2] ** 2
+    effort_cost = W_EFFORT * (a ** 2).mean(-1) if a.shape[-1] else 0.0
+    legs = split_state(s_next, graph)["leg"][..., :2]                  # (..., L, 2)
+    if graph.n_legs:
+        nominal = torch.as_tensor(nominal_joint_angles(graph), dtype=s.dtype)
+        pose_cost = W_POSE * ((legs - nominal) ** 2).mean((-1, -2))
+    else:
+        pose_cost = 0.0
+    return progress - pitch_cost - effort_cost - pose_cost
+
+
+# ----------------------------------------------------------------------------
+# Initial states p(s) and random spline actions (Sec. III-B)
+# ----------------------------------------------------------------------------
+def forward_kinematics(graph: DesignGraph, s: np.ndarray) -> dict:
+    """Joint and contact points (cm, world frame) of robots in states s (N, S).
+
+    Returns {"corners": (N, 4, 2) body box, "hip": (N, L, 2), "knee": (N, L, 2),
+    "foot": (N, L, 2), "axle": (N, W, 2)}.  Used to place a perturbed robot on
+    the ground and to draw any state trajectory, simulated or model-predicted.
+    """
+    x, y, pitch = s[:, 0] / CM, s[:, 1] / CM, s[:, 2]
+    c, si = np.cos(pitch)[:, None], np.sin(pitch)[:, None]
+
+    def to_world(px, py):                 # body-frame points (K,), (K,) -> world (N, K, 2)
+        px, py = px[None], py[None]
+        return np.stack([x[:, None] + px * c - py * si, y[:, None] + px * si + py * c], -1)
+
+    def mount_x(ports):
+        return np.array([PORT_X[min(p, 5 - p)] for p in ports])
+
+    corners = to_world(np.array([-1, 1, 1, -1]) * BODY_LENGTH / 2,
+                       np.array([-1, -1, 1, 1]) * BODY_HEIGHT / 2)
+    hip = to_world(mount_x(graph.leg_ports), np.full(graph.n_legs, MOUNT_Y))
+    axle = to_world(mount_x(graph.wheel_ports), np.full(graph.n_wheels, MOUNT_Y))
+    q = split_state(s, graph)["leg"]                       # (N, L, 4)
+    a1 = pitch[:, None] + q[..., 0]                        # thigh angle in the world
+    knee = hip + THIGH * np.stack([np.sin(a1), -np.cos(a1)], -1)
+    a2 = a1 + q[..., 1]                                    # shin angle in the world
+    foot = knee + SHIN * np.stack([np.sin(a2), -np.cos(a2)], -1)
+    return {"corners": corners, "hip": hip, "knee": knee, "foot": foot, "axle": axle}
+
+
+def standing_height(graph: DesignGraph, s: np.ndarray) -> np.ndarray:
+    """Body height (m) at which the lowest part of each robot just touches the ground."""
+    s0 = s.copy()
+    s0[:, 1] = 0.0
+    fk = forward_kinematics(graph, s0)
+    lowest = np.concatenate([fk["corners"][..., 1], fk["knee"][..., 1] - LINK_RADIUS,
+                             fk["foot"][..., 1] - FOOT_RADIUS, fk["axle"][..., 1] - WHEEL_RADIUS],
+                            axis=1).min(1)
+    return (GROUND_RADIUS - lowest) * CM
+
+
+def nominal_state(graph: DesignGraph) -> np.ndarray:
+    """(S,) the robot standing still in its nominal pose at x = 0."""
+    s = np.zeros((1, graph.state_dim))
+    parts = split_state(s, graph)
+    parts["leg"][..., :2] = nominal_joint_angles(graph)
+    s[:, 1] = standing_height(graph, s)
+    return s[0]
+
+
+def sample_initial_states(graph: DesignGraph, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n, S) states perturbed from nominal (p(s) of eqn. 1), just above the ground."""
+    s = np.tile(nominal_state(graph), (n, 1))
+    parts = split_state(s, graph)          # views into s
+    parts["leg"][..., :2] += rng.uniform(-INIT_JOINT, INIT_JOINT, (n, graph.n_legs, 2))
+    parts["leg"][..., 2:] = rng.uniform(-INIT_JOINT_VEL, INIT_JOINT_VEL, (n, graph.n_legs, 2))
+    parts["wheel"][...] = rng.uniform(-INIT_JOINT_VEL, INIT_JOINT_VEL, (n, graph.n_wheels, 1))
+    s[:, 2] = rng.uniform(-INIT_PITCH, INIT_PITCH, n)
+    s[:, 3:5] = rng.uniform(-INIT_BODY_VEL, INIT_BODY_VEL, (n, 2))
+    s[:, 5] = rng.uniform(-INIT_PITCH_RATE, INIT_PITCH_RATE, n)
+    lo, hi = zip(HIP_LIMITS, KNEE_LIMITS)
+    parts["leg"][..., :2] = np.clip(parts["leg"][..., :2], lo, hi)
+    s[:, 1] = standing_height(graph, s) + rng.uniform(0.0, INIT_DROP, n)
+    return s
+
+
+def random_spline_actions(rng: np.random.Generator, n: int, action_dim: int, steps: int = 100,
+                          knots: int = 10, std: float = 1.0) -> np.ndarray:
+    """(n, steps, action_dim) smooth random actions (Sec. III-B).
+
+    Per robot and DoF, `knots` values drawn from N(0, std^2) are joined by a
+    cubic (Catmull-Rom) spline over `steps` control steps, then clipped to [-1, 1].
+    """
+    values = rng.normal(0.0, std, (n, knots, action_dim))
+    u = np.linspace(0.0, knots - 1, steps)                 # spline parameter per step
+    i = np.clip(np.floor(u).astype(int), 0, knots - 2)
+    t = (u - i)[None, :, None]
+    pad = np.concatenate([values[:, :1], values, values[:, -1:]], 1)   # (n, knots + 2, A)
+    p0, p1, p2, p3 = pad[:, i], pad[:, i + 1], pad[:, i + 2], pad[:, i + 3]
+    spline = 0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t ** 2
+                    + (3 * p1 - p0 - 3 * p2 + p3) * t ** 3)
+    return np.clip(spline, -1.0, 1.0)
+
+
+# ----------------------------------------------------------------------------
+# pymunk: one Space per robot (robots never share a collision search, and a
+# robot's trajectory does not depend on how many others are simulated).
+# ----------------------------------------------------------------------------
+def _cross(w: float, r) -> pymunk.Vec2d:
+    """Planar w x r: velocity of a point at offset r on a body turning at w."""
+    return pymunk.Vec2d(-w * r[1], w * r[0])
+
+
+def build_robot(graph: DesignGraph, state: np.ndarray) -> tuple[pymunk.Space, list]:
+    """A fresh Space holding the ground and one robot in `state` (S,).
+
+    Returns the Space and the motors in action order.  Bodies are added in
+    state order (body, then thigh and shin per leg, then wheels), which is the
+    order `pymunk.batch` reads them back in.  Building a new Space for every
+    reset is what makes runs reproducible (a reused Space keeps cached
+    contact impulses).
+    """
+    space = pymunk.Space()
+    space.gravity = (0.0, -GRAVITY)
+    space.iterations = SOLVER_ITERATIONS
+    ground = pymunk.Segment(space.static_body, (GROUND_X[0], 0.0), (GROUND_X[1], 0.0), GROUND_RADIUS)
+    ground.friction = FRICTION
+    ground.filter = pymunk.ShapeFilter(categories=GROUND_CAT, mask=ROBOT_CAT)
+    space.add(ground)
+    limb_filter = pymunk.ShapeFilter(group=1, categories=ROBOT_CAT, mask=GROUND_CAT)
+
+    parts = split_state(state, graph)
+    x, y, pitch, vx, vy, w = parts["body"]
+    body = pymunk.Body(BODY_MASS, pymunk.moment_for_box(BODY_MASS, (BODY_LENGTH, BODY_HEIGHT)))
+    body.position, body.angle = (x / CM, y / CM), pitch
+    body.velocity, body.angular_velocity = (vx / CM, vy / CM), w
+    box = pymunk.Poly.create_box(body, (BODY_LENGTH, BODY_HEIGHT))
+    space.add(body, box)
+    shapes, motors = [box], []
+
+    def attach(parent, child, anchor_world, lo_hi, rate_max, torque):
+        """Pivot at `anchor_world`, optional joint limits, velocity motor child-parent."""
+        pivot = pymunk.PivotJoint(parent, child, anchor_world)
+        motor = pymunk.SimpleMotor(child, parent, 0.0)   # drives w_child - w_parent to rate
+        motor.max_force = torque                         # torque limit: unbounded if unset
+        space.add(pivot, motor)
+        if lo_hi is not None:                            # limits child.angle - parent.angle
+            space.add(pymunk.RotaryLimitJoint(parent, child, *lo_hi))
+        motors.append(motor)
+
+    def point_velocity(b, p):
+        return b.velocity + _cross(b.angular_velocity, p - b.position)
+
+    def link(angle, w_abs, top, top_vel, length):
+        """A leg link hanging from `top` (world, cm) at world angle `angle`."""
+        d = pymunk.Vec2d(math.sin(angle), -math.cos(angle))
+        b = pymunk.Body(LINK_MASS, pymunk.moment_for_segment(LINK_MASS, (0, length / 2), (0, -length / 2), LINK_RADIUS))
+        b.position, b.angle = top + d * (length / 2), angle
+        b.angular_velocity = w_abs
+        b.velocity = top_vel + _cross(w_abs, d * (length / 2))
+        seg = pymunk.Segment(b, (0, length / 2), (0, -length / 2), LINK_RADIUS)
+        space.add(b, seg)
+        shapes.append(seg)
+        return b, top + d * length
+
+    fk = forward_kinematics(graph, state[None])
+    for k in range(graph.n_legs):
+        q_hip, q_knee, dq_hip, dq_knee = parts["leg"][k]
+        hip = pymunk.Vec2d(*fk["hip"][0, k])
+        thigh, knee = link(pitch + q_hip, w + dq_hip, hip, point_velocity(body, hip), THIGH)
+        attach(body, thigh, hip, HIP_LIMITS, LEG_MAX_SPEED, LEG_MAX_TORQUE)
+        shin, _ = link(pitch + q_hip + q_knee, w + dq_hip + dq_knee, knee,
+                       point_velocity(thigh, knee), SHIN)
+        foot = pymunk.Circle(shin, FOOT_RADIUS, (0, -SHIN / 2))
+        space.add(foot)
+        shapes.append(foot)
+        attach(thigh, shin, knee, KNEE_LIMITS, LEG_MAX_SPEED, LEG_MAX_TORQUE)
+    for k in range(graph.n_wheels):
+        axle = pymunk.Vec2d(*fk["axle"][0, k])
+        wheel = pymunk.Body(WHEEL_MASS, pymunk.moment_for_circle(WHEEL_MASS, 0, WHEEL_RADIUS))
+        wheel.position, wheel.velocity = axle, point_velocity(body, axle)
+        wheel.angular_velocity = w + parts["wheel"][k, 0]
+        disc = pymunk.Circle(wheel, WHEEL_RADIUS)
+        space.add(wheel, disc)
+        shapes.append(disc)
+        attach(body, wheel, axle, None, WHEEL_MAX_SPEED, WHEEL_MAX_TORQUE)
+    for shape in shapes:
+        shape.friction = FRICTION
+        shape.filter = limb_filter
+    return space, motors
+
+
+_BODY_FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
+                | pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY)
+
+
+def joint_speed_scale(graph: DesignGraph) -> np.ndarray:
+    """(A,) rad/s of each joint at action 1: normalised action -> motor rate."""
+    return np.array([LEG_MAX_SPEED] * (LEG_ACT_DIM * graph.n_legs) + [WHEEL_MAX_SPEED] * graph.n_wheels)
+
+
+class World:
+    """N robots of one design, stepped together (a Gymnasium-style vector env).
+
+    `reset(seed=...)` returns (obs, info); `step(actions)` returns (obs,
+    rewards, terminated, truncated, info), where obs is the per-module dict of
+    `observe`, terminated marks flipped robots (sticky; they keep being
+    simulated) and truncated turns True after `max_steps` steps.  info["state"]
+    is the flat (N, S) state; `reset` accepts options={"states": (N, S)} to
+    start from given states instead of sampled ones.
+    """
+
+    def __init__(self, design: str | DesignGraph, n: int = 1, max_steps: int = 200, seed: int = 0):
+        if n < 1:
+            raise ValueError(f"number of robots must be at least 1, got {n}")
+        self.graph = design_graph(design)
+        self.n, self.max_steps = n, max_steps
+        self.np_random = np.random.default_rng(seed)
+        self.action_scale = joint_speed_scale(self.graph)
+        self._buffer = pymunk.batch.Buffer()
+        n_bodies = 1 + 2 * self.graph.n_legs + self.graph.n_wheels + 1   # + the static body
+        self._raw = np.zeros((n, n_bodies, 6))   # per body: px, py, angle, vx, vy, w
+        self.spaces: list[pymunk.Space] = []
+
+    # -- state ---------------------------------------------------------------
+    def read_state(self) -> np.ndarray:
+        """(N, S) flat state of every robot, read in bulk with pymunk.batch."""
+        buf, raw = self._buffer, self._raw
+        for i, space in enumerate(self.spaces):
+            buf.clear()
+            pymunk.batch.get_space_bodies(space, _BODY_FIELDS, buf)
+            raw[i] = np.frombuffer(buf.float_buf()).reshape(raw.shape[1:])
+        nl = self.graph.n_legs
+        body, thigh, shin = raw[:, 0], raw[:, 1:1 + 2 * nl:2], raw[:, 2:2 + 2 * nl:2]
+        wheel = raw[:, 1 + 2 * nl:-1]                          # the static body comes last
+        legs = np.stack([thigh[..., 2] - body[:, None, 2], shin[..., 2] - thigh[..., 2],
+                         thigh[..., 5] - body[:, None, 5], shin[..., 5] - thigh[..., 5]], -1)
+        return np.concatenate([body[:, :2] * CM, body[:, 2:3], body[:, 3:5] * CM, body[:, 5:6],
+                               legs.reshape(self.n, -1), wheel[..., 5] - body[:, None, 5]], 1)
+
+    def _observe(self, s: np.ndarray) -> dict:
+        return observe(s, self.graph, obs_noise_like(s, self.graph, self.np_random))
+
+    # -- Gymnasium-style API -------------------------------------------------
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        """Rebuild every robot at a perturbed (or given) initial state."""
+        if seed is not None:
+            self.np_random = np.random.default_rng(seed)
+        if options and "states" in options:
+            states = np.asarray(options["states"], dtype=float).reshape(self.n, self.graph.state_dim)
+        else:
+            states = sample_initial_states(self.graph, self.n, self.np_random)
+        built = [build_robot(self.graph, s) for s in states]
+        self.spaces = [space for space, _ in built]
+        self.motors = [motors for _, motors in built]
+        self.t = 0
+        self.terminated = np.zeros(self.n, dtype=bool)
+        self.state = self.read_state()
+        return self._observe(self.state), {"state": self.state}
+
+    def step(self, actions):
+        """Hold normalised joint-velocity commands (N, A), clipped to [-1, 1], for 1/12 s."""
+        actions = np.asarray(actions, dtype=float).reshape(self.n, self.graph.action_dim)
+        if not np.isfinite(actions).all():
+            raise ValueError("actions must be finite numbers (they are clipped to [-1, 1])")
+        actions = np.clip(actions, -1.0, 1.0)
+        rates = (actions * self.action_scale).tolist()
+        for space, motors, rate in zip(self.spaces, self.motors, rates):
+            for motor, r in zip(motors, rate):
+                motor.rate = r
+            for _ in range(STEPS_PER_ACTION):
+                space.step(PHYSICS_DT)
+        s, s_next = self.state, self.read_state()
+        r = reward(torch.from_numpy(s), torch.from_numpy(actions), torch.from_numpy(s_next), self.graph)
+        self.state, self.t = s_next, self.t + 1
+        flipped = np.abs(s_next[:, 2]) > FLIP_PITCH
+        self.terminated |= flipped
+        truncated = np.full(self.n, self.t >= self.max_steps)
+        info = {"state": s_next, "flipped": flipped}
+        return self._observe(s_next), r.numpy(), self.terminated.copy(), truncated, info
