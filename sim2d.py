@@ -446,6 +446,7 @@ def build_robot(graph: DesignGraph, state: np.ndarray) -> tuple[pymunk.Space, li
     return space, motors
 
 
+_set_motor_rate = pymunk._chipmunk_cffi.lib.cpSimpleMotorSetRate   # what SimpleMotor.rate = r calls
 _BODY_FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
                 | pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY)
 
@@ -474,18 +475,21 @@ class World:
         self.np_random = np.random.default_rng(seed)
         self.action_scale = joint_speed_scale(self.graph)
         self._buffer = pymunk.batch.Buffer()
-        n_bodies = 1 + 2 * self.graph.n_legs + self.graph.n_wheels + 1   # + the static body
-        self._raw = np.zeros((n, n_bodies, 6))   # per body: px, py, angle, vx, vy, w
         self.spaces: list[pymunk.Space] = []
 
     # -- state ---------------------------------------------------------------
     def read_state(self) -> np.ndarray:
-        """(N, S) flat state of every robot, read in bulk with pymunk.batch."""
-        buf, raw = self._buffer, self._raw
-        for i, space in enumerate(self.spaces):
+        """(N, S) flat state of every robot, read in bulk with pymunk.batch.
+
+        Per body pymunk.batch gives [px, py, angle, vx, vy, w] (cm, rad, s) in
+        the order the bodies were added, the Space's static body last.
+        """
+        buf, chunks = self._buffer, []
+        for space in self.spaces:
             buf.clear()
             pymunk.batch.get_space_bodies(space, _BODY_FIELDS, buf)
-            raw[i] = np.frombuffer(buf.float_buf()).reshape(raw.shape[1:])
+            chunks.append(bytes(buf.float_buf()))
+        raw = np.frombuffer(b"".join(chunks)).reshape(self.n, -1, 6)   # (N, bodies + 1, 6)
         nl = self.graph.n_legs
         body, thigh, shin = raw[:, 0], raw[:, 1:1 + 2 * nl:2], raw[:, 2:2 + 2 * nl:2]
         wheel = raw[:, 1 + 2 * nl:-1]                          # the static body comes last
@@ -508,7 +512,8 @@ class World:
             states = sample_initial_states(self.graph, self.n, self.np_random)
         built = [build_robot(self.graph, s) for s in states]
         self.spaces = [space for space, _ in built]
-        self.motors = [motors for _, motors in built]
+        self.motors = [motors for _, motors in built]        # keeps the C objects alive
+        self._motor_ptrs = [[m._constraint for m in motors] for motors in self.motors]
         self.t = 0
         self.terminated = np.zeros(self.n, dtype=bool)
         self.state = self.read_state()
@@ -521,9 +526,10 @@ class World:
             raise ValueError("actions must be finite numbers (they are clipped to [-1, 1])")
         actions = np.clip(actions, -1.0, 1.0)
         rates = (actions * self.action_scale).tolist()
-        for space, motors, rate in zip(self.spaces, self.motors, rates):
-            for motor, r in zip(motors, rate):
-                motor.rate = r
+        for space, motors, rate in zip(self.spaces, self._motor_ptrs, rates):
+            # `motor.rate = r` for every motor, minus two layers of Python property
+            # code that cost as much as the rest of the world's overhead together.
+            list(map(_set_motor_rate, motors, rate))
             for _ in range(STEPS_PER_ACTION):
                 space.step(PHYSICS_DT)
         s, s_next = self.state, self.read_state()
@@ -534,3 +540,205 @@ class World:
         truncated = np.full(self.n, self.t >= self.max_steps)
         info = {"state": s_next, "flipped": flipped}
         return self._observe(s_next), r.numpy(), self.terminated.copy(), truncated, info
+
+
+# ----------------------------------------------------------------------------
+# Evaluation: the paper's metric (Sec. IV), distance in 200 control steps
+# ----------------------------------------------------------------------------
+def evaluate(design: str | DesignGraph, act, n: int = 8, steps: int = 200, seed: int = 0) -> dict:
+    """Run `act` on n perturbed starts for `steps` control steps (200 = 16.7 s).
+
+    act(obs, state) -> (n, A) actions; obs is the noisy per-module dict the
+    policy sees, state the true (n, S) state (for hand-crafted controllers).
+    Returns {"distance_m": (n,), "flipped": (n,) bool, "states": (steps+1, n, S)}.
+    """
+    world = World(design, n=n, max_steps=steps, seed=seed)
+    obs, info = world.reset(seed=seed)
+    states = [info["state"]]
+    for _ in range(steps):
+        obs, _, terminated, _, info = world.step(act(obs, info["state"]))
+        states.append(info["state"])
+    states = np.stack(states)
+    return {"distance_m": states[-1, :, 0] - states[0, :, 0], "flipped": terminated, "states": states}
+
+
+# ----------------------------------------------------------------------------
+# Rendering with matplotlib: side view, left limbs (ports 0-2) in front in
+# dark colours, right limbs (ports 3-5) behind the body in light colours.
+# ----------------------------------------------------------------------------
+NEAR, FAR = {"leg": "#1f4e9c", "wheel": "#1b7a3a"}, {"leg": "#f0a040", "wheel": "#9fd39a"}
+FAR_SHIFT = np.array([4.0, 3.0])   # cm, drawing offset of the far (right) side
+
+
+def _draw_robot(ax, graph: DesignGraph, s: np.ndarray, wheel_angle: np.ndarray, alpha: float = 1.0):
+    """Draw one robot in state s (S,) with wheel spoke angles (W,) on `ax` (cm)."""
+    import matplotlib.patches as mpatches
+    for near in (False, True):                 # far side first, then body, then near side
+        colours = NEAR if near else FAR
+        z = 3 if near else 1
+        shift = 0.0 if near else FAR_SHIFT     # a hint of depth so overlapping limbs both show
+        fk = {k: v[0] + shift for k, v in forward_kinematics(graph, s[None]).items()}
+        for k, port in enumerate(graph.leg_ports):
+            if (port < 3) != near:
+                continue
+            pts = np.stack([fk["hip"][k], fk["knee"][k], fk["foot"][k]])
+            ax.plot(pts[:, 0], pts[:, 1], "-", lw=5, color=colours["leg"], alpha=alpha,
+                    solid_capstyle="round", zorder=z)
+            ax.add_patch(mpatches.Circle(pts[2], FOOT_RADIUS, color=colours["leg"], alpha=alpha, zorder=z))
+        for k, port in enumerate(graph.wheel_ports):
+            if (port < 3) != near:
+                continue
+            c = fk["axle"][k]
+            ax.add_patch(mpatches.Circle(c, WHEEL_RADIUS, fill=False, lw=3, color=colours["wheel"],
+                                         alpha=alpha, zorder=z))
+            for da in (0.0, math.pi / 2):      # two spokes show the rotation
+                d = WHEEL_RADIUS * np.array([math.cos(wheel_angle[k] + da), math.sin(wheel_angle[k] + da)])
+                ax.plot([c[0] - d[0], c[0] + d[0]], [c[1] - d[1], c[1] + d[1]], lw=1.5,
+                        color=colours["wheel"], alpha=alpha, zorder=z)
+    fk = {k: v[0] for k, v in forward_kinematics(graph, s[None]).items()}
+    ax.add_patch(mpatches.Polygon(fk["corners"], closed=True, color="#555555", alpha=alpha, zorder=2))
+
+
+def _wheel_angles(graph: DesignGraph, states: np.ndarray) -> np.ndarray:
+    """(T, W) wheel angles for drawing, integrated from the rates (not part of the state)."""
+    rates = split_state(states, graph)["wheel"][..., 0] + states[:, 5:6]
+    return np.concatenate([np.zeros((1, graph.n_wheels)), np.cumsum(rates[1:] * CONTROL_DT, 0)])
+
+
+def _style_axes(ax, x_centre: float, width: float = 250.0):
+    ax.set_xlim(x_centre - width / 2, x_centre + width / 2)
+    ax.set_ylim(-8, 90)
+    ax.set_aspect("equal")
+    ax.axhline(0, color="k", lw=2)
+    ticks = np.arange(math.floor((x_centre - width) / 50) * 50, x_centre + width, 50)
+    ax.set_xticks(ticks)
+    ax.set_xticklabels([f"{t / 100:g}" for t in ticks])
+    ax.set_yticks([])
+    ax.set_xlabel("x (m)")
+
+
+def save_gif(graph: DesignGraph, states: np.ndarray, path: str, every: int = 1, title: str = ""):
+    """Animate one robot's state trajectory (T+1, S), simulated or model-predicted."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+    graph = design_graph(graph)
+    angles = _wheel_angles(graph, states)
+    fig, ax = plt.subplots(figsize=(8, 3.4), dpi=80)
+    frames = range(0, len(states), every)
+
+    def draw(t):
+        ax.clear()
+        _style_axes(ax, states[t, 0] / CM)
+        _draw_robot(ax, graph, states[t], angles[t])
+        ax.set_title(f"{title or graph.name}   t = {t * CONTROL_DT:4.1f} s   "
+                     f"distance = {states[t, 0] - states[0, 0]:5.2f} m", fontsize=13)
+
+    FuncAnimation(fig, draw, frames=frames).save(path, writer=PillowWriter(fps=12 // every))
+    plt.close(fig)
+
+
+def save_png(graph: DesignGraph, states: np.ndarray, path: str, poses: int = 6, title: str = ""):
+    """A strobe picture: `poses` snapshots of one robot's trajectory, later ones darker."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    graph = design_graph(graph)
+    angles = _wheel_angles(graph, states)
+    x = states[:, 0] / CM
+    fig, ax = plt.subplots(figsize=(10, 3.2), dpi=100)
+    _style_axes(ax, (x.min() + x.max()) / 2, max(300.0, x.max() - x.min() + 200))
+    for j, t in enumerate(np.linspace(0, len(states) - 1, poses).astype(int)):
+        _draw_robot(ax, graph, states[t], angles[t], alpha=0.25 + 0.75 * (j + 1) / poses)
+    ax.set_title(title or f"{graph.name} ({graph.code}): {states[-1, 0] - states[0, 0]:.2f} m "
+                 f"in {(len(states) - 1) * CONTROL_DT:.1f} s", fontsize=13)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------
+# Benchmark: the world's overhead over bare pymunk stepping of the same robots
+# ----------------------------------------------------------------------------
+def bench(designs=tuple(NAMED_DESIGNS), n: int = 16, steps: int = 100, repeats: int = 3) -> dict:
+    """Control steps per second: World.step (actions in, state read out) vs bare space.step.
+
+    Both run on the same Spaces in one process, interleaved, best of `repeats`.
+    """
+    results = {}
+    for design in designs:
+        world = World(design, n=n)
+        world.reset(seed=0)
+        actions = random_spline_actions(np.random.default_rng(0), n, world.graph.action_dim, steps)
+        best_world = best_bare = float("inf")
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            for t in range(steps):
+                world.step(actions[:, t])
+            best_world = min(best_world, time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                for space in world.spaces:
+                    for _ in range(STEPS_PER_ACTION):
+                        space.step(PHYSICS_DT)
+            best_bare = min(best_bare, time.perf_counter() - t0)
+        results[design] = {"world": n * steps / best_world, "bare": n * steps / best_bare}
+    return results
+
+
+class CliParser(argparse.ArgumentParser):
+    """argparse, but bad input is one line on stderr and exit status 2 (no usage dump)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def main(argv=None) -> int:
+    parser = CliParser(description="Run one robot in the planar world, or benchmark it.")
+    parser.add_argument("--design", default="hexapod", help="a name (%s) or a 6-letter code of l/w/n"
+                        % ", ".join(NAMED_DESIGNS))
+    parser.add_argument("--steps", type=int, default=200, help="control steps of 1/12 s (200 = 16.7 s)")
+    parser.add_argument("--action", choices=("zero", "random"), default="zero",
+                        help="zero: hold the pose; random: smooth random spline commands")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--gif", help="write an animation of the run to this path")
+    parser.add_argument("--bench", action="store_true", help="time the world against bare pymunk")
+    args = parser.parse_args(argv)
+    if args.bench:
+        torch.set_num_threads(1)
+        results = bench()
+        for design, r in results.items():
+            print(f"{design:15s} world {r['world']:8.0f} steps/s   bare pymunk {r['bare']:8.0f} steps/s"
+                  f"   ratio {r['world'] / r['bare']:.2f}")
+        hexa = results["hexapod"]
+        print(f"hexapod_steps_per_s={hexa['world']:.1f} hexapod_ratio={hexa['world'] / hexa['bare']:.3f}")
+        return 0
+    try:
+        graph = design_graph(args.design)
+    except ValueError as e:
+        parser.error(str(e))
+    if args.steps < 1:
+        parser.error(f"--steps must be a positive number of control steps, got {args.steps}")
+    rng = np.random.default_rng(args.seed)
+    actions = (random_spline_actions(rng, 1, graph.action_dim, args.steps) if args.action == "random"
+               else np.zeros((1, args.steps, graph.action_dim)))
+    t0 = time.perf_counter()
+    counter = iter(range(args.steps))
+    result = evaluate(graph, lambda obs, s: actions[:, next(counter)], n=1, steps=args.steps, seed=args.seed)
+    seconds = time.perf_counter() - t0
+    s = result["states"][:, 0]
+    print(f"design {graph.name} ({graph.code}): {graph.n_legs} legs, {graph.n_wheels} wheels, "
+          f"{graph.action_dim} joints, state {graph.state_dim}")
+    print(f"{args.steps} steps ({args.steps * CONTROL_DT:.1f} s simulated) in {seconds:.2f} s wall; "
+          f"height {s[0, 1]:.3f} -> {s[-1, 1]:.3f} m, max |pitch| {np.abs(s[:, 2]).max():.3f} rad")
+    if args.gif:
+        save_gif(graph, s, args.gif)
+        print(f"wrote {args.gif}")
+    print(f"action={args.action} seed={args.seed} distance_m={result['distance_m'][0]:.4f} "
+          f"flipped={int(result['flipped'][0])}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

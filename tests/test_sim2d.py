@@ -1,0 +1,168 @@
+"""Tests of the planar world (sim2d.py): designs, physics sanity, determinism, reward, batching."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import sim2d
+
+NAMED = list(sim2d.NAMED_DESIGNS)
+
+
+def test_names_and_codes():
+    assert sim2d.parse_design("hexapod") == "llllll"
+    assert sim2d.parse_design("car") == "wnwwnw"
+    assert sim2d.parse_design("leg-leg-wheel") == "llwwll"
+    assert sim2d.parse_design("LEG_NONE_WHEEL") == "lnwwnl"
+    assert sim2d.parse_design("lwnnwl") == "lwnnwl"
+    assert len(sim2d.all_designs()) == 728
+    g = sim2d.design_graph("leg_none_wheel")
+    assert g.leg_ports == (0, 5) and g.wheel_ports == (2, 3)
+    assert g.nodes == [("body", None), ("leg", 0), ("leg", 5), ("wheel", 2), ("wheel", 3)]
+    assert g.state_dim == 6 + 4 * 2 + 2 and g.action_dim == 2 * 2 + 2
+
+
+@pytest.mark.parametrize("bad", ["spider", "llll", "lxwwnl", "nnnnnn", ""])
+def test_bad_designs_give_one_line_errors(bad):
+    with pytest.raises(ValueError) as err:
+        sim2d.parse_design(bad)
+    assert "\n" not in str(err.value) and ("hexapod" in str(err.value) or "no limbs" in str(err.value))
+
+
+def test_cli_bad_design_exit_status_2():
+    out = subprocess.run([sys.executable, "sim2d.py", "--design", "spider"], capture_output=True, text=True)
+    assert out.returncode == 2
+    assert out.stderr.count("\n") == 1 and "unknown design" in out.stderr
+
+
+def test_cli_summary_line():
+    out = subprocess.run([sys.executable, "sim2d.py", "--design", "car", "--steps", "12", "--action", "random"],
+                         capture_output=True, text=True, check=True)
+    last = out.stdout.strip().splitlines()[-1]
+    assert last.split()[-2].startswith("distance_m=") and last.split()[-1] in ("flipped=0", "flipped=1")
+    float(last.split()[-2].split("=")[1])
+
+
+@pytest.mark.parametrize("design", NAMED)
+def test_named_designs_stand_still(design):
+    g = sim2d.design_graph(design)
+    result = sim2d.evaluate(g, lambda obs, s: np.zeros((4, g.action_dim)), n=4, steps=200, seed=1)
+    s = result["states"]                                   # (201, 4, S)
+    nominal_y = sim2d.nominal_state(g)[1]
+    assert np.all(np.abs(s[-20:, :, 1] - nominal_y) < 0.02), "height drifted from nominal"
+    assert np.all(np.abs(s[-20:, :, 2]) < 0.05), "not level"
+    assert np.all(np.abs(result["distance_m"]) < 0.1), "crept away"
+    assert not result["flipped"].any()
+
+
+def test_random_codes_random_and_out_of_range_actions_do_not_blow_up():
+    rng = np.random.default_rng(0)
+    codes = rng.choice(sim2d.all_designs(), 12, replace=False)
+    for code in codes:
+        g = sim2d.design_graph(code)
+        world = sim2d.World(g, n=3, seed=int(rng.integers(1000)))
+        world.reset()
+        actions = sim2d.random_spline_actions(rng, 3, g.action_dim, 60, std=3.0) * 5.0   # beyond [-1, 1]
+        for t in range(60):
+            obs, r, term, trunc, info = world.step(actions[:, t] * 5.0)
+            assert np.isfinite(info["state"]).all() and np.isfinite(r).all()
+        assert np.abs(info["state"][:, 3:]).max() < 50, f"{code} blew up"
+
+
+def test_non_finite_actions_are_refused():
+    world = sim2d.World("car")
+    world.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        world.step(np.full((1, 4), np.nan))
+
+
+def test_same_seed_same_trajectory_other_seed_other_start():
+    def run(seed):
+        g = sim2d.design_graph("leg_leg_wheel")
+        actions = sim2d.random_spline_actions(np.random.default_rng(seed), 2, g.action_dim, 50)
+        steps = iter(range(50))
+        return sim2d.evaluate(g, lambda obs, s: actions[:, next(steps)], n=2, steps=50, seed=seed)["states"]
+    a, b, c = run(3), run(3), run(4)
+    assert np.array_equal(a, b)
+    assert not np.allclose(a[0], c[0])
+
+
+def test_torch_reward_agrees_with_simulated_progress():
+    g = sim2d.design_graph("car")
+    world = sim2d.World(g, n=3)
+    _, info = world.reset(seed=0)
+    s0, total = info["state"], 0.0
+    a = np.full((3, g.action_dim), -1.0)                  # drive forward
+    for _ in range(24):
+        _, r, _, _, info = world.step(a)
+        total = total + r
+    progress = info["state"][:, 0] - s0[:, 0]
+    assert np.all(progress > 1.0)
+    assert np.allclose(total, progress, atol=0.05 * progress.max())   # penalties are small
+    s = torch.tensor(s0, requires_grad=True)
+    sim2d.reward(s, torch.tensor(a), s * 1.01, g).sum().backward()
+    assert torch.isfinite(s.grad).all() and s.grad.abs().sum() > 0
+
+
+def test_observation_has_no_x_and_no_linear_velocity():
+    g = sim2d.design_graph("leg_none_wheel")
+    s = np.tile(sim2d.nominal_state(g), (2, 1))
+    obs = sim2d.observe(s, g)
+    s2 = s.copy()
+    s2[:, 0] += 5.0                                        # x
+    s2[:, 3:5] += 1.0                                      # vx, vy
+    obs2 = sim2d.observe(s2, g)
+    for k in obs:
+        assert np.array_equal(obs[k], obs2[k])
+    assert obs["body"].shape == (2, 3) and obs["leg"].shape == (2, 2, 4) and obs["wheel"].shape == (2, 2, 1)
+    s3 = s.copy()
+    s3[:, 1] += 0.1                                        # height is observed
+    assert not np.array_equal(sim2d.observe(s3, g)["body"], obs["body"])
+
+
+def test_batched_world_matches_single_worlds():
+    g = sim2d.design_graph("hexapod")
+    starts = sim2d.sample_initial_states(g, 3, np.random.default_rng(7))
+    actions = sim2d.random_spline_actions(np.random.default_rng(8), 3, g.action_dim, 40)
+    batched = sim2d.World(g, n=3)
+    batched.reset(options={"states": starts})
+    for t in range(40):
+        batched.step(actions[:, t])
+    for i in range(3):
+        single = sim2d.World(g, n=1)
+        single.reset(options={"states": starts[i:i + 1]})
+        for t in range(40):
+            single.step(actions[i:i + 1, t])
+        assert np.array_equal(single.state[0], batched.state[i])
+
+
+def test_reset_state_round_trips_and_flip_is_detected():
+    g = sim2d.design_graph("hexapod")
+    s = sim2d.sample_initial_states(g, 2, np.random.default_rng(0))
+    world = sim2d.World(g, n=2)
+    _, info = world.reset(options={"states": s})
+    assert np.allclose(info["state"], s, atol=1e-9)
+    upside_down = s.copy()
+    upside_down[:, 2] = np.pi                              # on its back, legs up
+    upside_down[:, 1] = sim2d.standing_height(g, upside_down)
+    world.reset(options={"states": upside_down})
+    _, _, terminated, _, info = world.step(np.zeros((2, g.action_dim)))
+    assert terminated.all() and info["flipped"].all()
+
+
+def test_spline_actions_are_smooth_and_bounded():
+    a = sim2d.random_spline_actions(np.random.default_rng(0), 5, 3, 100)
+    assert a.shape == (5, 100, 3) and np.abs(a).max() <= 1.0
+    steps = np.abs(np.diff(a, axis=1))                     # white noise would give ~0.8 on average
+    assert steps.mean() < 0.1 and steps.max() < 0.6        # 10 knots over 100 steps: no jumps
+    assert a.std() > 0.3
+
+
+def test_rendering_writes_files(tmp_path):
+    g = sim2d.design_graph("leg_none_wheel")
+    states = sim2d.evaluate(g, lambda obs, s: np.full((1, g.action_dim), -0.5), n=1, steps=6)["states"][:, 0]
+    sim2d.save_gif(g, states, str(tmp_path / "a.gif"))
+    sim2d.save_png(g, states, str(tmp_path / "a.png"))
+    assert (tmp_path / "a.gif").stat().st_size > 1000 and (tmp_path / "a.png").stat().st_size > 1000
