@@ -1,0 +1,178 @@
+"""Tests of Algorithm 1 (modular_rlil_minimal.py) and its command line (train.py), at tiny budgets."""
+import dataclasses
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import modular_rlil_minimal as rlil
+import sim2d
+import train
+from gnn import GNNConfig, gaussian_log_prob
+
+TINY = dict(random_episodes=4, episode_steps=20, policy_episodes=2, demo_episodes=4, demo_steps=20,
+            bc_steps=2, model_steps=5, finetune_steps=3, model_batch=64, policy_steps=4, horizon=4, batch=8,
+            buffer_size=16, update_rate=2, validate_every=2, validation_multiple=2, il_batch=4, il_window=4,
+            eval_episodes=2, eval_steps=20, iters=2, gnn=GNNConfig(hidden=16))
+
+
+def tiny(**kw) -> rlil.Config:
+    return rlil.Config(**{**TINY, **kw})
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("demo_cache")
+
+
+def quiet(*args, **kw):
+    pass
+
+
+def strip_times(metrics):
+    return [{k: v for k, v in row.items() if k != "seconds"} for row in metrics]
+
+
+def test_tiny_run_writes_every_output(tmp_path, cache):
+    cfg = tiny(train=("leg_none_wheel",), demos=("hexapod", "car"))
+    metrics = train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    for name in train.OUTPUTS:
+        assert (tmp_path / name).stat().st_size > 0, name
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved["config"]["train"] == ["lnwwnl"] and saved["config"]["demos"] == ["llllll", "wnwwnw"]
+    assert [row["iteration"] for row in saved["iterations"]] == [0, 1, 2]
+    for row in saved["iterations"]:
+        assert row["distance_min_m"] <= row["distance_m"] <= row["distance_max_m"]
+        for key in ("il_weight", "model_loss", "seconds"):
+            assert key in row
+    assert (tmp_path / "metrics.csv").read_text().splitlines()[0].startswith("iteration,distance_m")
+    assert len(metrics) == 3
+    policy = torch.load(tmp_path / "policy.pt", weights_only=False)
+    assert policy["config"]["seed"] == 0 and policy["iteration"] == 2
+
+
+def test_existing_run_is_not_overwritten(tmp_path, cache):
+    cfg = tiny(train=("car",), iters=1)
+    train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    before = (tmp_path / "metrics.json").read_bytes()
+    with pytest.raises(train.UsageError, match="--resume"):
+        train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    assert (tmp_path / "metrics.json").read_bytes() == before
+
+
+def test_resumed_run_ends_where_an_uninterrupted_one_does(tmp_path, cache):
+    cfg = tiny(train=("leg_none_wheel",), demos=("car",), iters=2)
+    whole = train.train(cfg, tmp_path / "whole", log=quiet, cache_dir=cache)
+    train.train(dataclasses.replace(cfg, iters=1), tmp_path / "split", log=quiet, cache_dir=cache)
+    resumed = train.train(cfg, tmp_path / "split", resume=True, log=quiet, cache_dir=cache)
+    assert strip_times(resumed) == strip_times(whole)
+
+
+def test_same_seed_same_metrics_other_seed_differs(tmp_path, cache):
+    cfg = tiny(train=("car",), iters=1)
+    a = train.train(cfg, tmp_path / "a", log=quiet, cache_dir=cache)
+    b = train.train(cfg, tmp_path / "b", log=quiet, cache_dir=cache)
+    c = train.train(dataclasses.replace(cfg, seed=1), tmp_path / "c", log=quiet, cache_dir=cache)
+    assert strip_times(a) == strip_times(b)
+    assert strip_times(a) != strip_times(c)
+
+
+def test_each_phase_runs_alone(cache):
+    cfg = tiny()
+    rng = rlil.seed_everything(0)
+    data = {"lnwwnl": rlil.collect_random_rollouts("lnwwnl", cfg, rng)}             # line 2
+    assert data["lnwwnl"].states.shape == (4, 21, 16) and data["lnwwnl"].actions.shape == (4, 20, 6)
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
+    demo = rlil.load_demos(dataclasses.replace(cfg, demos=("hexapod",)), cache)
+    assert np.isfinite(rlil.pretrain_bc(policy, demo, cfg, rng))                      # line 1
+    model.fit_normalization([(sim2d.design_graph("lnwwnl"), *data["lnwwnl"].transitions())])
+    assert np.isfinite(rlil.train_model(model, data, cfg, 5, rng))                    # line 5
+    out = rlil.optimize_policy(policy, model, data, demo, 0.1, 1e-3, cfg, rng)        # lines 7-26
+    assert np.isfinite(out["rl_loss"]) and np.isfinite(out["il_loss"])
+    new = rlil.collect_policy_rollouts(policy, "lnwwnl", cfg, rng)                    # lines 28-29
+    assert new.actions.shape == (2 * cfg.policy_episodes, 20, 6)
+    assert rlil.decay_il_weight(0.4, cfg) == pytest.approx(0.4 * cfg.il_decay)        # line 30
+
+
+def test_il_loss_equals_hand_computation():
+    """eqn. (IL_loss) on two (o, a) pairs of two designs: -sum_d mean log N(a; mu(o), sigma(o))."""
+    cfg = tiny(il_batch=1, il_window=1)
+    torch.manual_seed(0)
+    policy = rlil.ModularPolicy(cfg.gnn)
+
+    class Demo:                                  # one episode of one step per design
+        def __init__(self, design, rng):
+            g = sim2d.design_graph(design)
+            s = sim2d.sample_initial_states(g, 1, rng)
+            self.obs = {k: v[:, None] for k, v in sim2d.observe(s, g).items()}   # (1, 1, ...)
+            self.actions = rng.uniform(-1, 1, (1, 1, g.action_dim))
+
+    rng = np.random.default_rng(0)
+    demo = {"llllll": Demo("hexapod", rng), "wnwwnw": Demo("car", rng)}
+    loss, _ = rlil.il_loss(policy, demo, cfg, np.random.default_rng(0))
+    hand = 0.0
+    for design, d in demo.items():
+        g = sim2d.design_graph(design)
+        obs = {k: torch.as_tensor(v[:, 0], dtype=torch.float32) for k, v in d.obs.items()}
+        mean, log_std, _ = policy(obs, g, policy.initial_hidden(1, g))
+        a = torch.as_tensor(d.actions[:, 0], dtype=torch.float32)
+        var = torch.exp(2 * log_std)
+        hand -= (-(a - mean) ** 2 / (2 * var) - log_std - 0.5 * math.log(2 * math.pi)).sum().item()
+    assert loss.item() == pytest.approx(hand, rel=1e-5)
+
+
+def test_il_weight_decays(tmp_path, cache):
+    cfg = tiny(train=("car",), demos=("car",), iters=2, il_weight=0.4, il_decay=0.5)
+    metrics = train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    assert [m["il_weight"] for m in metrics[1:]] == pytest.approx([0.4, 0.2])
+    rl_only = train.train(tiny(train=("car",), iters=1), tmp_path / "rl", log=quiet, cache_dir=cache)
+    assert rl_only[1]["il_weight"] == 0.0
+
+
+def test_adaptive_learning_rate_reverts_on_worse_validation(monkeypatch):
+    cfg = tiny(policy_steps=4, validate_every=2, lr_drop=0.5)
+    rng = rlil.seed_everything(0)
+    data = {"wnwwnw": rlil.collect_random_rollouts("wnwwnw", cfg, rng)}
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
+    start = {k: v.clone() for k, v in policy.state_dict().items()}
+    values = iter([1.0, 0.5, 0.25])              # every check is worse than the one before
+    monkeypatch.setattr(rlil, "validation_reward", lambda *a, **k: next(values))
+    out = rlil.optimize_policy(policy, model, data, {}, 0.0, 1e-3, cfg, rng)
+    assert out["reverts"] == 2 and out["lr"] == pytest.approx(1e-3 * 0.25)
+    for k, v in policy.state_dict().items():     # reverted twice, to the start
+        assert torch.equal(v, start[k]), k
+
+
+def test_non_finite_loss_is_reverted(monkeypatch):
+    cfg = tiny(policy_steps=2, validate_every=100)
+    rng = rlil.seed_everything(0)
+    data = {"wnwwnw": rlil.collect_random_rollouts("wnwwnw", cfg, rng)}
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
+    real = sim2d.reward
+    monkeypatch.setattr(rlil.sim2d, "reward", lambda *a: real(*a) * float("nan"))
+    out = rlil.optimize_policy(policy, model, data, {}, 0.0, 1e-3, cfg, rng)
+    assert out["reverts"] == 2
+    assert all(torch.isfinite(p).all() for p in policy.parameters())
+
+
+def test_cli_bad_input_exit_2(tmp_path):
+    def run(*args):
+        return subprocess.run([sys.executable, "train.py", *args], capture_output=True, text=True)
+    for args in (["--train", "spider"], ["--train", "nnnnnn"], ["--train", "car", "--iters", "0"],
+                 ["--eval", str(tmp_path), "--design", "car"], ["--train", "car", "--resume", "--out", str(tmp_path)]):
+        out = run(*args)
+        assert out.returncode == 2 and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, args
+    (tmp_path / "policy.pt").write_bytes(b"not a checkpoint")
+    out = run("--eval", str(tmp_path), "--design", "car")
+    assert out.returncode == 2 and "corrupt" in out.stderr
+
+
+def test_cli_eval_zero_shot(tmp_path, cache):
+    train.train(tiny(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
+    out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
+                         capture_output=True, text=True, check=True)
+    assert np.isfinite(float(out.stdout.strip().splitlines()[-1].split("distance_m=")[1]))
