@@ -12,7 +12,7 @@ import torch
 import modular_rlil_minimal as rlil
 import sim2d
 import train
-from gnn import GNNConfig, gaussian_log_prob
+from gnn import GNNConfig
 
 TINY = dict(random_episodes=4, episode_steps=20, policy_episodes=2, demo_episodes=4, demo_steps=20,
             bc_steps=2, model_steps=5, finetune_steps=3, model_batch=64, policy_steps=4, horizon=4, batch=8,
