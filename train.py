@@ -225,6 +225,142 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None, episodes: int | No
     return float(d.mean())
 
 
+# ----------------------------------------------------------------------------
+# Figure 3 of the paper: four conditions, RL vs RL+IL, over seeds
+# ----------------------------------------------------------------------------
+PANELS = {   # panel: (trained design, demo designs), the paper's Fig. 3 (a)-(d)
+    "a": ("hexapod", ("hexapod",)),
+    "b": ("car", ("car",)),
+    "c": ("leg_leg_wheel", ("hexapod", "car")),
+    "d": ("leg_none_wheel", ("hexapod", "car")),
+}
+
+
+def figure3_runs(out: Path, seeds: int, iters: int) -> list[dict]:
+    """One entry per run of the sweep: its panel, method, seed, directory and train.py arguments."""
+    runs = []
+    for panel, (design, demos) in PANELS.items():
+        for method, demo_list in (("RL+IL", demos), ("RL", ())):
+            for seed in range(seeds):
+                cfg = rlil.Config(train=(sim2d.parse_design(design),),
+                                  demos=tuple(sim2d.parse_design(d) for d in demo_list), seed=seed, iters=iters)
+                args = ["--train", design, "--seed", str(seed), "--iters", str(iters)]
+                args += ["--demos", *demo_list] if demo_list else []
+                runs.append({"panel": panel, "train": design, "demos": "+".join(demos), "method": method,
+                             "seed": seed, "dir": out / run_name(cfg), "args": args})
+    return runs
+
+
+def finished_iterations(run_dir: Path) -> int:
+    try:
+        return len(json.loads((run_dir / "metrics.json").read_text())["iterations"]) - 1
+    except (OSError, ValueError, KeyError):
+        return -1
+
+
+def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = (), log=rlil.print_log) -> None:
+    """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
+
+    Each run is a normal run directory under `out`, so a sweep resumes (finished
+    runs are reused, interrupted ones continue) and its runs can be spread over
+    machines by any scheduler and merged into one `out` before plotting.
+    """
+    import subprocess
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    t0 = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    runs = figure3_runs(out, seeds, iters)
+    todo = [r for r in runs if finished_iterations(r["dir"]) < iters]
+    log(f"figure 3: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time", t0)
+    threads = 1 if jobs > 1 else THREADS
+
+    def launch(run):
+        cmd = [sys.executable, str(Path(__file__).resolve()), *run["args"], *budget, "--out", str(run["dir"]),
+               "--threads", str(threads)]
+        if (run["dir"] / "checkpoint.pt").exists():
+            cmd.append("--resume")
+        run["dir"].mkdir(parents=True, exist_ok=True)
+        with open(run["dir"] / "train.log", "a") as f:
+            return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = {pool.submit(launch, r): r for r in todo}
+        for done, future in enumerate(as_completed(futures), 1):
+            r = futures[future]
+            status = "ok" if future.result() == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
+            elapsed = time.perf_counter() - t0
+            log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
+                f"{elapsed / done * (len(todo) - done):.0f} s left", t0)
+    rows = figure3_rows(runs)
+    write_figure3(out, rows, iters)
+    log(f"wrote {out / 'figure3.png'} and {out / 'figure3.csv'}", t0)
+
+
+def figure3_rows(runs: list[dict]) -> list[dict]:
+    """The CSV rows: panel,train,demos,method,seed,iteration,distance_m of every finished iteration."""
+    rows = []
+    for r in runs:
+        try:
+            metrics = json.loads((r["dir"] / "metrics.json").read_text())["iterations"]
+        except (OSError, ValueError, KeyError):
+            continue
+        rows += [{"panel": r["panel"], "train": r["train"], "demos": r["demos"], "method": r["method"],
+                  "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"]} for m in metrics]
+    return rows
+
+
+def write_figure3(out: Path, rows: list[dict], iters: int) -> None:
+    """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def write_csv(p):
+        with open(p, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=["panel", "train", "demos", "method", "seed", "iteration", "distance_m"])
+            w.writeheader()
+            w.writerows(rows)
+    atomic_write(out / "figure3.csv", write_csv)
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8), dpi=100, sharey=True)
+    for ax, (panel, (design, demos)) in zip(axes, PANELS.items()):
+        for method, colour in (("RL+IL", "tab:blue"), ("RL", "tab:red")):
+            table = {}
+            for row in rows:
+                if row["panel"] == panel and row["method"] == method:
+                    table.setdefault(row["iteration"], []).append(row["distance_m"])
+            if not table:
+                continue
+            it = sorted(table)
+            ax.plot(it, [np.mean(table[i]) for i in it], "o-", color=colour,
+                    label=f"{method} ({len(table[it[0]])} seeds)")
+            ax.fill_between(it, [min(table[i]) for i in it], [max(table[i]) for i in it], color=colour, alpha=0.2)
+        ax.set_title(f"({panel}) {design}, demos: {' + '.join(demos)}", fontsize=10)
+        ax.set_xlabel("iteration")
+        ax.set_xticks(range(iters + 1))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower right")
+    axes[0].set_ylabel("distance in 200 steps (m)")
+    fig.tight_layout()
+    atomic_write(out / "figure3.png", lambda p: fig.savefig(p, format="png"))
+    plt.close(fig)
+
+
+BUDGET = {   # Config fields exposed on the command line
+    "policy_steps": "K, policy gradient steps per iteration",
+    "horizon": "T, model roll-out steps",
+    "batch": "N_batch, initial states per policy step",
+    "random_episodes": "random-action episodes of 100 steps per training design",
+    "policy_episodes": "policy episodes per iteration (x2: without and with noise)",
+    "model_steps": "model Adam steps at iteration 1",
+    "finetune_steps": "model Adam steps at later iterations",
+    "bc_steps": "behavioural-cloning steps (with --demos)",
+    "demo_episodes": "demonstration episodes per demo design",
+    "eval_episodes": "perturbed starts per evaluation",
+    "il_weight": "lambda at iteration 1 (with --demos)",
+}
+
+
 def build_parser() -> sim2d.CliParser:
     p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) on the planar world.")
     p.add_argument("--train", nargs="+", metavar="DESIGN", help="design(s) to train (d_train)")
@@ -237,23 +373,27 @@ def build_parser() -> sim2d.CliParser:
     p.add_argument("--eval", metavar="RUN_DIR", help="evaluate a saved policy (with --design)")
     p.add_argument("--design", help="design for --eval (any of the 728, trained on or not)")
     p.add_argument("--gif", help="with --eval: write an animation of the first start")
+    p.add_argument("--threads", type=int, default=THREADS, help=f"torch threads (default {THREADS})")
+    p.add_argument("--figure3", action="store_true",
+                   help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
+    p.add_argument("--seeds", type=int, default=3, help="with --figure3: seeds per condition (default 3)")
+    p.add_argument("--jobs", type=int, default=2, help="with --figure3: runs in parallel processes (default 2)")
     budget = p.add_argument_group("budget (defaults: the 5-minute CPU run)")
     defaults = rlil.Config()
-    for name, help_ in [("policy_steps", "K, policy gradient steps per iteration"),
-                        ("horizon", "T, model roll-out steps"),
-                        ("batch", "N_batch, initial states per policy step"),
-                        ("random_episodes", "random-action episodes of 100 steps per training design"),
-                        ("policy_episodes", "policy episodes per iteration (x2: without and with noise)"),
-                        ("model_steps", "model Adam steps at iteration 1"),
-                        ("finetune_steps", "model Adam steps at later iterations"),
-                        ("bc_steps", "behavioural-cloning steps (with --demos)"),
-                        ("demo_episodes", "demonstration episodes per demo design"),
-                        ("eval_episodes", "perturbed starts per evaluation")]:
-        budget.add_argument("--" + name.replace("_", "-"), type=int, default=getattr(defaults, name),
+    for name, help_ in BUDGET.items():
+        kind = type(getattr(defaults, name))
+        budget.add_argument("--" + name.replace("_", "-"), type=kind, default=getattr(defaults, name),
                             help=f"{help_} (default {getattr(defaults, name)})")
-    budget.add_argument("--il-weight", type=float, default=defaults.il_weight,
-                        help=f"lambda at iteration 1 (default {defaults.il_weight})")
     return p
+
+
+def budget_from_args(args) -> dict:
+    """The budget flags, checked: counts positive (--bc-steps may be 0), lambda not negative."""
+    budget = {k: getattr(args, k) for k in BUDGET}
+    for k, v in budget.items():
+        if v < (0 if k in ("bc_steps", "il_weight") else 1):
+            raise UsageError(f"--{k.replace('_', '-')} must be {'non-negative' if k in ('bc_steps', 'il_weight') else 'a positive integer'}, got {v}")
+    return budget
 
 
 def config_from_args(args) -> rlil.Config:
@@ -262,23 +402,24 @@ def config_from_args(args) -> rlil.Config:
         demos = tuple(sim2d.parse_design(d) for d in args.demos)
     except ValueError as e:
         raise UsageError(str(e))
-    ints = {k: getattr(args, k) for k in ("iters", "policy_steps", "horizon", "batch", "random_episodes",
-                                          "policy_episodes", "model_steps", "finetune_steps", "demo_episodes",
-                                          "eval_episodes")}
-    for k, v in ints.items():
-        if v < 1:
-            raise UsageError(f"--{k.replace('_', '-')} must be a positive integer, got {v}")
-    if args.bc_steps < 0 or args.il_weight < 0:
-        raise UsageError("--bc-steps and --il-weight must not be negative")
-    return rlil.Config(train=train, demos=demos, seed=args.seed, bc_steps=args.bc_steps,
-                       il_weight=args.il_weight, **ints)
+    if args.iters < 1:
+        raise UsageError(f"--iters must be a positive integer, got {args.iters}")
+    return rlil.Config(train=train, demos=demos, seed=args.seed, iters=args.iters, **budget_from_args(args))
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    torch.set_num_threads(THREADS)
     try:
+        if args.threads < 1:
+            raise UsageError(f"--threads must be a positive integer, got {args.threads}")
+        torch.set_num_threads(args.threads)
+        if args.figure3:
+            if args.seeds < 1 or args.jobs < 1 or args.iters < 1:
+                raise UsageError("--seeds, --jobs and --iters must be positive integers")
+            budget = [x for k, v in budget_from_args(args).items() for x in ("--" + k.replace("_", "-"), str(v))]
+            figure3(Path(args.out or "runs/figure3"), args.seeds, args.iters, args.jobs, budget)
+            return 0
         if args.eval:
             if not args.design:
                 raise UsageError("--eval needs --design DESIGN")

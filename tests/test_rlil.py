@@ -176,3 +176,21 @@ def test_cli_eval_zero_shot(tmp_path, cache):
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
                          capture_output=True, text=True, check=True)
     assert np.isfinite(float(out.stdout.strip().splitlines()[-1].split("distance_m=")[1]))
+
+
+def test_figure3_reuses_finished_runs_and_writes_plot_and_csv(tmp_path):
+    """A sweep whose runs are all finished launches nothing and tabulates every run."""
+    runs = train.figure3_runs(tmp_path, seeds=2, iters=1)
+    assert len(runs) == 4 * 2 * 2 and len({r["dir"] for r in runs}) == 16
+    for k, r in enumerate(runs):                 # fake finished runs: distance grows with RL+IL
+        r["dir"].mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": float(i + k + (10 if r["method"] == "RL+IL" else 0))}
+                for i in range(2)]
+        (r["dir"] / "metrics.json").write_text(json.dumps({"config": {}, "iterations": rows}))
+    train.figure3(tmp_path, seeds=2, iters=1, jobs=2, log=quiet)
+    lines = (tmp_path / "figure3.csv").read_text().splitlines()
+    assert lines[0] == "panel,train,demos,method,seed,iteration,distance_m"
+    assert len(lines) == 1 + 16 * 2
+    assert "a,hexapod,hexapod,RL+IL,0,0,10.0" in lines and "d,leg_none_wheel,hexapod+car,RL,1,1," in "\n".join(lines)
+    assert not any((r["dir"] / "train.log").exists() for r in runs)    # nothing was run again
+    assert (tmp_path / "figure3.png").stat().st_size > 10_000
