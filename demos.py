@@ -1,7 +1,7 @@
 """Hand-crafted demonstrations: the dataset T_demo of (observation, action) pairs.
 
 Paper (Whitman & Choset, "Learning Modular Robot Locomotion from
-Demonstrations"): Sec. III-C "Gather demonstration datasets" (eqn. 2: per demo
+Demonstrations"): Sec. III-D "Gather demonstration datasets" (eqn. 2: per demo
 design, L trajectories of H steps of (o_t, a_t)) and Sec. IV "Experiments"
 (hexapod: alternating tripod gait; car: all wheels driving; 50 randomly
 perturbed initial states, 100 control steps each, closed loop).

@@ -63,7 +63,7 @@ class Config:
     batch: int = 64                  # N_batch, initial states per step and design
     buffer_size: int = 256           # |B|, initial states with hidden states per design
     update_rate: int = 10            # every this many steps, refresh half of B (lines 23-25)
-    policy_lr: float = 1e-3          # initial learning rate (adapted, Sec. III-H)
+    policy_lr: float = 1e-3          # initial learning rate (adapted, Sec. III-J)
     lr_drop: float = 0.5             # factor applied on every validation revert
     validate_every: int = 20         # steps between validation checks
     validation_multiple: int = 10    # validation set = this many batches of initial states
@@ -182,15 +182,15 @@ def rollout(policy: ModularPolicy, model: ModularModel, s0, h0, graph, horizon: 
     s0: (B, S) initial states, h0: (B, nodes, H) policy hidden states.  Returns
     the summed reward R (B,), the final state and hidden state.  Actions are
     reparameterised samples, so dR/dtheta flows through every model step.
-    The model sees actions clipped to [-1, 1] like the simulator applies them;
-    the reward's effort term sees them unclipped, which keeps a gradient that
-    pulls saturated commands back into range.
+    The model clips actions to [-1, 1] like the simulator; the reward's effort
+    term sees them unclipped, which keeps a gradient that pulls saturated
+    commands back into range.
     """
     s, h, total = s0, h0, torch.zeros(len(s0))
     for _ in range(horizon):
         noise = None if deterministic else sim2d.obs_noise_like(s, graph)
         a, h = policy.act(sim2d.observe(s, graph, noise), graph, h, deterministic=deterministic)
-        s_next = model(s, a.clamp(-1.0, 1.0), graph)                  # (B, S)
+        s_next = model(s, a, graph)                                     # (B, S)
         total = total + sim2d.reward(s, a, s_next, graph)               # (B,)
         s = s_next
     return total, s, h
@@ -270,7 +270,7 @@ def refresh_buffer(buffer: Buffer, policy, model, data: Trajectories, cfg: Confi
 
 @torch.no_grad()
 def validation_reward(policy, model, val_states: dict, cfg: Config) -> float:
-    """Sec. III-H: net reward of T deterministic model steps from a fixed, large set of states."""
+    """Sec. III-J: net reward of T deterministic model steps from a fixed, large set of states."""
     total = 0.0
     for design, s0 in val_states.items():
         graph = sim2d.design_graph(design)
@@ -285,7 +285,7 @@ def optimize_policy(policy: ModularPolicy, model: ModularModel, data: dict[str, 
                     rng: np.random.Generator) -> dict:
     """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty).
 
-    The learning rate adapts (Sec. III-H "Implementation details"): every
+    The learning rate adapts (Sec. III-J "Implementation details"): every
     `validate_every` steps the validation reward is compared with the last
     check; if it is worse, the parameters revert to that check and the rate
     drops by `lr_drop`.  A non-finite loss or gradient is treated the same way,
@@ -385,9 +385,14 @@ class RunState:
         torch.set_rng_state(state["torch"])
 
 
-def print_log(message: str, t0: float | None = None) -> None:
-    """Default progress printer: the message and the seconds since t0."""
-    print(message if t0 is None else f"{message}  [{time.perf_counter() - t0:.1f} s]", flush=True)
+class ProgressLog:
+    """Prints one line per phase, prefixed with the seconds since the log was made."""
+
+    def __init__(self):
+        self.t0 = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        print(f"[{time.perf_counter() - self.t0:6.1f} s] {message}", flush=True)
 
 
 def seed_everything(seed: int) -> np.random.Generator:
@@ -411,19 +416,19 @@ def eval_seed(cfg: Config) -> int:
     return 1_000_003 + cfg.seed
 
 
-def start(cfg: Config, demo_data: dict, log=print_log) -> RunState:
+def start(cfg: Config, demo_data: dict, log=print) -> RunState:
     """Lines 1-2, then the iteration-0 evaluation."""
     rng = seed_everything(cfg.seed)
     policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
     t0 = time.perf_counter()
     if demo_data and cfg.bc_steps:
         bc = pretrain_bc(policy, demo_data, cfg, rng)
-        log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss {bc:.3f}", t0)
+        log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss {bc:.3f}")
     data = {}
     for design in cfg.train:
         code = sim2d.parse_design(design)
         data[code] = collect_random_rollouts(code, cfg, rng)
-    log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes", t0)
+    log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
     state = RunState(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0,
                      lr=cfg.policy_lr, rng=rng)
     state.metrics.append(iteration_metrics(state, 0, float("nan"), time.perf_counter() - t0))
@@ -441,7 +446,7 @@ def iteration_metrics(state: RunState, i: int, model_loss: float, seconds: float
     return {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}   # JSON null
 
 
-def iterate(state: RunState, demo_data: dict, log=print_log) -> dict:
+def iterate(state: RunState, demo_data: dict, log=print) -> dict:
     """One pass of Algorithm 1's loop body (lines 4-30) and its evaluation."""
     cfg, rng, i = state.cfg, state.rng, state.iteration + 1
     t0 = time.perf_counter()
@@ -449,11 +454,11 @@ def iterate(state: RunState, demo_data: dict, log=print_log) -> dict:
         batches = [(sim2d.design_graph(d), *traj.transitions()) for d, traj in state.data.items()]
         state.model.fit_normalization(batches)
     model_loss = train_model(state.model, state.data, cfg, cfg.model_steps if i == 1 else cfg.finetune_steps, rng)
-    log(f"iter {i}  line 5   model fitted: loss {model_loss:.4f}", t0)
+    log(f"iter {i}  line 5   model fitted: loss {model_loss:.4f}")
     opt = optimize_policy(state.policy, state.model, state.data, demo_data, state.il_weight, state.lr, cfg, rng)
     state.lr = opt["lr"]
     log(f"iter {i}  lines 7-26 policy: RL loss {opt['rl_loss']:.3f}, IL loss {opt['il_loss']:.3f}, "
-        f"{opt['reverts']} reverts, lr {state.lr:.1e}", t0)
+        f"{opt['reverts']} reverts, lr {state.lr:.1e}")
     for design in state.data:
         state.data[design] = state.data[design] + collect_policy_rollouts(state.policy, design, cfg, rng)
     row_extra = {"rl_loss": opt["rl_loss"], "il_loss": opt["il_loss"], "reverts": opt["reverts"], "lr": state.lr}
@@ -463,5 +468,5 @@ def iterate(state: RunState, demo_data: dict, log=print_log) -> dict:
     row["seconds"] = time.perf_counter() - t0
     state.metrics.append(row)
     log(f"iter {i}  evaluation: {row['distance_m']:.2f} m (min {row['distance_min_m']:.2f}, "
-        f"max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps", t0)
+        f"max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps")
     return row

@@ -90,7 +90,7 @@ INIT_BODY_VEL = 0.05       # m/s
 INIT_PITCH_RATE = 0.1      # rad/s
 INIT_JOINT_VEL = 0.2       # rad/s
 
-# Reward weights (Sec. III-E): forward progress in metres dominates.
+# Reward weights (Sec. III-F "Train policy using model and RL"): forward progress in metres dominates.
 W_PITCH = 0.02             # per rad^2 of pitch
 W_EFFORT = 0.002           # per mean squared normalised action
 W_POSE = 0.005             # per mean squared leg-joint distance from nominal (rad^2)
@@ -257,7 +257,7 @@ def nominal_joint_angles(graph: DesignGraph):
 
 
 def reward(s, a, s_next, graph: DesignGraph) -> torch.Tensor:
-    """r(s_t, a_t, s_t+1) (Sec. III-E), one value per robot, differentiable.
+    """r(s_t, a_t, s_t+1) (Sec. III-F), one value per robot, differentiable.
 
     Forward progress in metres, minus small penalties on pitch, control effort
     and leg-joint distance from the nominal pose.  Summed over 200 control

@@ -163,18 +163,18 @@ def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
     out.mkdir(parents=True, exist_ok=True)
 
 
-def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False, log=rlil.print_log,
+def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False, log=None,
           cache_dir=rlil.demo_lib.DEFAULT_CACHE_DIR) -> list[dict]:
     """Run (or continue) Algorithm 1 with every output written after each iteration."""
-    t_start = time.perf_counter()
+    log = log or rlil.ProgressLog()
     cfg = dataclasses.replace(cfg, train=tuple(sim2d.parse_design(d) for d in cfg.train),
                               demos=tuple(sim2d.parse_design(d) for d in cfg.demos))
     resuming = resume and (out / "checkpoint.pt").exists()
     prepare_run_dir(out, resume, force and not resuming)
     demo_data = rlil.load_demos(cfg, cache_dir)
     if demo_data:
-        log(f"demos: {', '.join(f'{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}' for d, v in demo_data.items())}",
-            t_start)
+        log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
+                                   for d, v in demo_data.items()))
     if resuming:
         ckpt = load_checkpoint(out / "checkpoint.pt")
         saved = config_from_dict(ckpt["config"])
@@ -182,12 +182,12 @@ def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False
             raise UsageError(f"--resume with a different configuration than {out}'s: "
                              "only --iters may change (start a new --out for other settings)")
         state = restore_state(ckpt, cfg)
-        log(f"resuming {out} after iteration {state.iteration}", t_start)
+        log(f"resuming {out} after iteration {state.iteration}")
     else:
         state = rlil.start(cfg, demo_data, log)
         save_checkpoint(out, state)
         save_metrics(out, cfg, state.metrics)
-    log(f"iteration 0: {state.metrics[0]['distance_m']:.2f} m in {cfg.eval_steps} steps", t_start)
+    log(f"iteration 0: {state.metrics[0]['distance_m']:.2f} m in {cfg.eval_steps} steps")
     durations = []
     while state.iteration < cfg.iters:
         t0 = time.perf_counter()
@@ -197,11 +197,11 @@ def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False
         save_curve(out, cfg, state.metrics)
         durations.append(time.perf_counter() - t0)
         left = (cfg.iters - state.iteration) * np.mean(durations)
-        log(f"iteration {state.iteration}/{cfg.iters} done; about {left:.0f} s left", t_start)
+        log(f"iteration {state.iteration}/{cfg.iters} done; about {left:.0f} s left")
     save_curve(out, cfg, state.metrics)
     save_rollouts(out, state)
     dist = " ".join(f"{m['distance_m']:.2f}" for m in state.metrics)
-    log(f"done: distance per iteration (m) {dist}; outputs in {out}", t_start)
+    log(f"done: distance per iteration (m) {dist}; outputs in {out}")
     return state.metrics
 
 
@@ -258,7 +258,7 @@ def finished_iterations(run_dir: Path) -> int:
         return -1
 
 
-def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = (), log=rlil.print_log) -> None:
+def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = (), log=None) -> None:
     """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
 
     Each run is a normal run directory under `out`, so a sweep resumes (finished
@@ -268,11 +268,12 @@ def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = ()
     import subprocess
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
+    log = log or rlil.ProgressLog()
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     runs = figure3_runs(out, seeds, iters)
     todo = [r for r in runs if finished_iterations(r["dir"]) < iters]
-    log(f"figure 3: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time", t0)
+    log(f"figure 3: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
     threads = 1 if jobs > 1 else THREADS
 
     def launch(run):
@@ -291,10 +292,10 @@ def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = ()
             status = "ok" if future.result() == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
             elapsed = time.perf_counter() - t0
             log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
-                f"{elapsed / done * (len(todo) - done):.0f} s left", t0)
+                f"{elapsed / done * (len(todo) - done):.0f} s left")
     rows = figure3_rows(runs)
     write_figure3(out, rows, iters)
-    log(f"wrote {out / 'figure3.png'} and {out / 'figure3.csv'}", t0)
+    log(f"wrote {out / 'figure3.png'} and {out / 'figure3.csv'}")
 
 
 def figure3_rows(runs: list[dict]) -> list[dict]:
