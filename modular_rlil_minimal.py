@@ -473,3 +473,12 @@ def iterate(state: RunState, demo_data: dict, log=print) -> dict:
     log(f"iter {i}  evaluation: {row['distance_m']:.2f} m (min {row['distance_min_m']:.2f}, "
         f"max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps")
     return row
+
+
+def algorithm1(cfg: Config, log=print, cache_dir=demo_lib.DEFAULT_CACHE_DIR) -> RunState:
+    """Algorithm 1 end to end, in memory (train.py runs the same steps with a checkpoint per iteration)."""
+    demo_data = load_demos(cfg, cache_dir)            # T_demo
+    state = start(cfg, demo_data, log)                # lines 1-2
+    while state.iteration < cfg.iters:                # lines 3-31
+        iterate(state, demo_data, log)
+    return state

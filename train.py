@@ -153,6 +153,8 @@ def save_rollouts(out: Path, state: rlil.RunState) -> None:
 # Commands
 # ----------------------------------------------------------------------------
 def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file, not a directory: name a new or existing run directory")
     existing = [f for f in OUTPUTS if (out / f).exists()]
     if existing and not (resume or force):
         raise UsageError(f"{out} already holds a run ({', '.join(existing)}): "
@@ -205,12 +207,11 @@ def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False
     return state.metrics
 
 
-def evaluate_run(run_dir: Path, design: str, gif: str | None, episodes: int | None) -> float:
-    """Zero-shot or not: the saved policy on any design, distance in 200 steps."""
+def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
+    """Zero-shot or not: the saved policy on any design, distance in 200 steps from the run's
+    evaluation starts."""
     ckpt = load_checkpoint(run_dir / "policy.pt")
     cfg = config_from_dict(ckpt["config"])
-    if episodes:
-        cfg = dataclasses.replace(cfg, eval_episodes=episodes)
     policy = ModularPolicy(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
     graph = sim2d.design_graph(design)
@@ -295,7 +296,10 @@ def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = ()
                 f"{elapsed / done * (len(todo) - done):.0f} s left")
     rows = figure3_rows(runs)
     write_figure3(out, rows, iters)
-    log(f"wrote {out / 'figure3.png'} and {out / 'figure3.csv'}")
+    summary = summarize_figure3(rows)
+    atomic_write(out / "figure3.md", lambda p: Path(p).write_text(summary))
+    print(summary)
+    log(f"wrote {out / 'figure3.png'}, {out / 'figure3.csv'} and {out / 'figure3.md'}")
 
 
 def figure3_rows(runs: list[dict]) -> list[dict]:
@@ -309,6 +313,42 @@ def figure3_rows(runs: list[dict]) -> list[dict]:
         rows += [{"panel": r["panel"], "train": r["train"], "demos": r["demos"], "method": r["method"],
                   "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"]} for m in metrics]
     return rows
+
+
+def converged_at(curve: dict, threshold: float):
+    """First iteration whose distance reaches `threshold`, or None."""
+    return next((i for i in sorted(curve) if curve[i] >= threshold), None)
+
+
+def summarize_figure3(rows: list[dict]) -> str:
+    """Markdown table per panel and method: iterations to converge, final distance, spread.
+
+    Converged = the first iteration whose mean over seeds reaches 90 % of the
+    best final mean of either method in that panel (per seed: of that seed's curve).
+    """
+    lines = ["| panel | method | converged at (mean curve) | per seed | final mean (m) | final min-max (m) |",
+             "|---|---|---|---|---|---|"]
+    for panel, (design, demos) in PANELS.items():
+        runs = {}                                           # method -> seed -> iteration -> distance
+        for r in rows:
+            if r["panel"] == panel:
+                runs.setdefault(r["method"], {}).setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
+        if not runs:
+            continue
+        last = min(max(c) for seeds in runs.values() for c in seeds.values())
+        mean = {m: {i: np.mean([c[i] for c in seeds.values() if i in c]) for i in range(last + 1)}
+                for m, seeds in runs.items()}
+        threshold = 0.9 * max(curve[last] for curve in mean.values())
+        for method in ("RL+IL", "RL"):
+            if method not in runs:
+                continue
+            finals = [c[last] for c in runs[method].values()]
+            per_seed = [converged_at(c, threshold) for c in runs[method].values()]
+            fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
+            lines.append(f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} | "
+                         f"{fmt(converged_at(mean[method], threshold))} | {', '.join(map(fmt, per_seed))} | "
+                         f"{np.mean(finals):.2f} | {min(finals):.2f} - {max(finals):.2f} |")
+    return "\n".join(lines) + "\n"
 
 
 def write_figure3(out: Path, rows: list[dict], iters: int) -> None:
@@ -428,7 +468,7 @@ def main(argv=None) -> int:
                 sim2d.design_graph(args.design)
             except ValueError as e:
                 raise UsageError(str(e))
-            evaluate_run(Path(args.eval), args.design, args.gif, None)
+            evaluate_run(Path(args.eval), args.design, args.gif)
             return 0
         if not args.train:
             raise UsageError("say what to train with --train DESIGN [DESIGN ...] (or --eval RUN_DIR)")

@@ -166,6 +166,9 @@ def test_cli_bad_input_exit_2(tmp_path):
                  ["--eval", str(tmp_path), "--design", "car"], ["--train", "car", "--resume", "--out", str(tmp_path)]):
         out = run(*args)
         assert out.returncode == 2 and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, args
+    (tmp_path / "a_file").write_text("mine")
+    out = run("--train", "car", "--out", str(tmp_path / "a_file"))
+    assert out.returncode == 2 and "is a file" in out.stderr and (tmp_path / "a_file").read_text() == "mine"
     (tmp_path / "policy.pt").write_bytes(b"not a checkpoint")
     out = run("--eval", str(tmp_path), "--design", "car")
     assert out.returncode == 2 and "corrupt" in out.stderr
@@ -194,3 +197,14 @@ def test_figure3_reuses_finished_runs_and_writes_plot_and_csv(tmp_path):
     assert "a,hexapod,hexapod,RL+IL,0,0,10.0" in lines and "d,leg_none_wheel,hexapod+car,RL,1,1," in "\n".join(lines)
     assert not any((r["dir"] / "train.log").exists() for r in runs)    # nothing was run again
     assert (tmp_path / "figure3.png").stat().st_size > 10_000
+    table = (tmp_path / "figure3.md").read_text()
+    assert "| (a) hexapod (hexapod demos) | RL+IL | 0 |" in table     # RL+IL starts at 10 m, above 90 %
+    assert "| (a) hexapod (hexapod demos) | RL | not converged |" in table
+
+
+def test_algorithm1_in_memory_matches_the_command_line_run(tmp_path, cache):
+    cfg = tiny(train=("lnwwnl",), demos=("wnwwnw",), iters=1)
+    state = rlil.algorithm1(cfg, log=quiet, cache_dir=cache)
+    on_disk = train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    assert strip_times(state.metrics) == strip_times(on_disk)
+    assert state.iteration == 1 and state.il_weight == pytest.approx(cfg.il_weight * cfg.il_decay)
