@@ -610,11 +610,12 @@ def _wheel_angles(graph: DesignGraph, states: np.ndarray) -> np.ndarray:
 
 
 def _style_axes(ax, x_centre: float, width: float = 250.0):
-    ax.set_xlim(x_centre - width / 2, x_centre + width / 2)
+    lo, hi = x_centre - width / 2, x_centre + width / 2
+    ax.set_xlim(lo, hi)
     ax.set_ylim(-8, 90)
     ax.set_aspect("equal")
     ax.axhline(0, color="k", lw=2)
-    ticks = np.arange(math.floor((x_centre - width) / 50) * 50, x_centre + width, 50)
+    ticks = np.arange(math.ceil(lo / 50) * 50, hi + 1e-9, 50)             # every 50 cm, inside the view
     ax.set_xticks(ticks)
     ax.set_xticklabels([f"{t / 100:g}" for t in ticks])
     ax.set_yticks([])
@@ -644,19 +645,21 @@ def save_gif(graph: DesignGraph, states: np.ndarray, path: str, every: int = 1, 
 
 
 def save_png(graph: DesignGraph, states: np.ndarray, path: str, poses: int = 6, title: str = ""):
-    """A strobe picture: `poses` snapshots of one robot's trajectory, later ones darker."""
+    """Snapshots of one robot's trajectory (T+1, S): `poses` panels in a row, each centred on
+    the robot at the scale of the GIF, so a 20 m run stays as legible as a 20 cm one."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     graph = design_graph(graph)
     angles = _wheel_angles(graph, states)
-    x = states[:, 0] / CM
-    fig, ax = plt.subplots(figsize=(10, 3.2), dpi=100)
-    _style_axes(ax, (x.min() + x.max()) / 2, max(300.0, x.max() - x.min() + 200))
-    for j, t in enumerate(np.linspace(0, len(states) - 1, poses).astype(int)):
-        _draw_robot(ax, graph, states[t], angles[t], alpha=0.25 + 0.75 * (j + 1) / poses)
-    ax.set_title(title or f"{graph.name} ({graph.code}): {states[-1, 0] - states[0, 0]:.2f} m "
-                 f"in {(len(states) - 1) * CONTROL_DT:.1f} s", fontsize=13)
+    times = np.linspace(0, len(states) - 1, poses).astype(int)
+    fig, axes = plt.subplots(1, poses, figsize=(2.6 * poses, 2.5), dpi=100, squeeze=False)
+    for ax, t in zip(axes[0], times):
+        _style_axes(ax, states[t, 0] / CM, width=160.0)
+        _draw_robot(ax, graph, states[t], angles[t])
+        ax.set_title(f"t = {t * CONTROL_DT:.1f} s, {states[t, 0] - states[0, 0]:.2f} m", fontsize=12)
+    fig.suptitle(title or f"{graph.name} ({graph.code}): {states[-1, 0] - states[0, 0]:.2f} m "
+                 f"in {(len(states) - 1) * CONTROL_DT:.1f} s", fontsize=14)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -714,6 +717,7 @@ def main(argv=None) -> int:
                         help="zero: hold the pose; random: smooth random spline commands")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="write an animation of the run to this path")
+    parser.add_argument("--png", help="write six snapshots of the run to this path")
     parser.add_argument("--bench", action="store_true", help="time the world against bare pymunk")
     args = parser.parse_args(argv)
     if args.bench:
@@ -746,6 +750,9 @@ def main(argv=None) -> int:
     if args.gif:
         save_gif(graph, s, args.gif)
         print(f"wrote {args.gif}")
+    if args.png:
+        save_png(graph, s, args.png)
+        print(f"wrote {args.png}")
     print(f"action={args.action} seed={args.seed} distance_m={result['distance_m'][0]:.4f} "
           f"flipped={int(result['flipped'][0])}")
     return 0
