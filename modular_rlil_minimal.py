@@ -64,7 +64,7 @@ class Config:
     batch: int = 64                  # N_batch, initial states per step and design
     buffer_size: int = 256           # |B|, initial states with hidden states per design
     update_rate: int = 10            # every this many steps, refresh half of B (lines 23-25)
-    policy_lr: float = 1e-3          # initial learning rate (adapted, Sec. III-J)
+    policy_lr: float = 1e-3          # learning rate at the start of every policy phase (adapted, Sec. III-J)
     lr_drop: float = 0.5             # factor applied on every validation revert
     grad_clip: float = 10.0          # max gradient norm of a policy step (BPTT through T model steps)
     validate_every: int = 20         # steps between validation checks
@@ -285,22 +285,23 @@ def validation_reward(policy, model, val_states: dict, cfg: Config) -> float:
 
 
 def optimize_policy(policy: ModularPolicy, model: ModularModel, data: dict[str, Trajectories],
-                    demo_data: dict, il_weight: float, lr: float, cfg: Config,
-                    rng: np.random.Generator) -> dict:
+                    demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator) -> dict:
     """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty).
 
-    The learning rate adapts (Sec. III-J "Implementation details"): every
-    `validate_every` steps the validation reward is compared with the last
-    check; if it is worse, the parameters revert to that check and the rate
-    drops by `lr_drop`.  A non-finite loss or gradient is treated the same way,
-    so the policy never holds a NaN.  Returns the metrics and the final rate.
+    The learning rate adapts (Sec. III-J "Implementation details"): the phase
+    starts at `policy_lr` and computes the validation reward; every
+    `validate_every` steps it is computed again, and if it is lower than at the
+    phase's start the parameters revert to the last check and the rate drops by
+    `lr_drop`.  A non-finite loss or gradient is treated the same way, so the
+    policy never holds a NaN.  Returns the metrics and the final rate.
     """
     for p in model.parameters():                      # the model is frozen in this phase
         p.requires_grad_(False)
     buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
+    lr = cfg.policy_lr
     opt = torch.optim.Adam(policy.parameters(), lr=lr)
-    best = validation_reward(policy, model, val_states, cfg)
+    initial = last = validation_reward(policy, model, val_states, cfg)      # the phase's reference
     saved = (copy.deepcopy(policy.state_dict()), copy.deepcopy(opt.state_dict()))
     reverts, rl_values, il_values = 0, [], []
 
@@ -337,21 +338,37 @@ def optimize_policy(policy: ModularPolicy, model: ModularModel, data: dict[str, 
                 refresh_buffer(buffer, policy, model, data[design], cfg, rng)
         if k % cfg.validate_every == 0:                                # adaptive learning rate
             value = validation_reward(policy, model, val_states, cfg)
-            if value < best or not math.isfinite(value):
+            if value < initial or not math.isfinite(value):
                 revert()
             else:
-                best = value
+                last = value
                 saved = (copy.deepcopy(policy.state_dict()), copy.deepcopy(opt.state_dict()))
     for p in model.parameters():
         p.requires_grad_(True)
     return {"rl_loss": float(np.mean(rl_values[-10:])) if rl_values else float("nan"),
             "il_loss": float(np.mean(il_values[-10:])) if il_values else float("nan"),
-            "validation_reward": best, "reverts": reverts, "lr": lr}
+            "validation_reward": last, "reverts": reverts, "lr": lr}
 
 
 def decay_il_weight(il_weight: float, cfg: Config) -> float:
     """Algorithm 1 line 30: lambda decays geometrically."""
     return il_weight * cfg.il_decay
+
+
+@torch.no_grad()
+def model_bias(policy: ModularPolicy, model: ModularModel, design: str, sim_states: np.ndarray,
+               cfg: Config) -> tuple[float, float]:
+    """How far the model flatters the policy: progress (m) in the first T steps from the
+    evaluation starts, predicted by rolling the policy out in the model, and measured in the
+    simulator (sim_states (steps+1, n, S) from `evaluate_policy`).  Means over starts.
+
+    A policy optimised through a model drifts to where the model is too optimistic; a
+    model figure well above the simulator's is that drift (model bias, Sec. III-H).
+    """
+    graph, T = sim2d.design_graph(design), cfg.horizon
+    s0 = torch.as_tensor(sim_states[0], dtype=torch.float32)                       # (n, S)
+    _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
+    return float((s_T[:, 0] - s0[:, 0]).mean()), float((sim_states[T, :, 0] - sim_states[0, :, 0]).mean())
 
 
 def evaluate_policy(policy: ModularPolicy, design: str, cfg: Config, seed: int) -> dict:
@@ -375,7 +392,6 @@ class RunState:
     model: ModularModel
     data: dict                       # T_train: design code -> Trajectories
     il_weight: float
-    lr: float
     iteration: int = 0               # last finished iteration (0: after line 2 and iteration-0 evaluation)
     metrics: list = field(default_factory=list)
     rng: np.random.Generator | None = None
@@ -433,19 +449,25 @@ def start(cfg: Config, demo_data: dict, log=print) -> RunState:
         code = sim2d.parse_design(design)
         data[code] = collect_random_rollouts(code, cfg, rng)
     log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
-    state = RunState(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0,
-                     lr=cfg.policy_lr, rng=rng)
+    state = RunState(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
     state.metrics.append(iteration_metrics(state, 0, float("nan"), time.perf_counter() - t0))
     return state
 
 
 def iteration_metrics(state: RunState, i: int, model_loss: float, seconds: float, extra: dict | None = None) -> dict:
-    """Evaluate every training design in the simulator and make the metrics row of iteration i."""
-    dist = np.concatenate([evaluate_policy(state.policy, d, state.cfg, eval_seed(state.cfg))["distance_m"]
-                           for d in state.data])
+    """Evaluate every training design in the simulator and make the metrics row of iteration i.
+
+    From iteration 1 on (when there is a fitted model) the row also holds `model_bias`'s
+    pair, averaged over training designs: model_progress_m and sim_progress_m.
+    """
+    results = {d: evaluate_policy(state.policy, d, state.cfg, eval_seed(state.cfg)) for d in state.data}
+    dist = np.concatenate([r["distance_m"] for r in results.values()])
     row = {"iteration": i, "distance_m": float(dist.mean()), "distance_min_m": float(dist.min()),
            "distance_max_m": float(dist.max()), "il_weight": state.il_weight, "model_loss": model_loss,
            "seconds": seconds}
+    if i > 0:
+        bias = [model_bias(state.policy, state.model, d, r["states"], state.cfg) for d, r in results.items()]
+        row["model_progress_m"], row["sim_progress_m"] = (float(np.mean(v)) for v in zip(*bias))
     row.update(extra or {})
     return {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}   # JSON null
 
@@ -459,20 +481,20 @@ def iterate(state: RunState, demo_data: dict, log=print) -> dict:
         state.model.fit_normalization(batches)
     model_loss = train_model(state.model, state.data, cfg, cfg.model_steps if i == 1 else cfg.finetune_steps, rng)
     log(f"iter {i}  line 5   model fitted: loss {model_loss:.4f}")
-    opt = optimize_policy(state.policy, state.model, state.data, demo_data, state.il_weight, state.lr, cfg, rng)
-    state.lr = opt["lr"]
+    opt = optimize_policy(state.policy, state.model, state.data, demo_data, state.il_weight, cfg, rng)
     log(f"iter {i}  lines 7-26 policy: RL loss {opt['rl_loss']:.3f}, IL loss {opt['il_loss']:.3f}, "
-        f"{opt['reverts']} reverts, lr {state.lr:.1e}")
+        f"{opt['reverts']} reverts, lr {opt['lr']:.1e}")
     for design in state.data:
         state.data[design] = state.data[design] + collect_policy_rollouts(state.policy, design, cfg, rng)
-    row_extra = {"rl_loss": opt["rl_loss"], "il_loss": opt["il_loss"], "reverts": opt["reverts"], "lr": state.lr}
+    row_extra = {"rl_loss": opt["rl_loss"], "il_loss": opt["il_loss"], "reverts": opt["reverts"], "lr": opt["lr"]}
     row = iteration_metrics(state, i, model_loss, 0.0, row_extra)
     state.il_weight = decay_il_weight(state.il_weight, cfg)
     state.iteration = i
     row["seconds"] = time.perf_counter() - t0
     state.metrics.append(row)
     log(f"iter {i}  evaluation: {row['distance_m']:.2f} m (min {row['distance_min_m']:.2f}, "
-        f"max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps")
+        f"max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; first {cfg.horizon} steps: "
+        f"model {row['model_progress_m']:.2f} m, simulator {row['sim_progress_m']:.2f} m")
     return row
 
 

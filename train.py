@@ -117,7 +117,7 @@ def save_checkpoint(out: Path, state: rlil.RunState) -> None:
     atomic_write(out / "checkpoint.pt", lambda p: torch.save({
         "config": cfg, "policy": state.policy.state_dict(), "model": state.model.state_dict(),
         "data": {d: {"states": t.states, "actions": t.actions} for d, t in state.data.items()},
-        "il_weight": state.il_weight, "lr": state.lr, "iteration": state.iteration,
+        "il_weight": state.il_weight, "iteration": state.iteration,
         "metrics": state.metrics, "rng": state.rng_state()}, p))
 
 
@@ -135,7 +135,7 @@ def restore_state(ckpt: dict, cfg: rlil.Config) -> rlil.RunState:
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
-    state = rlil.RunState(cfg, policy, model, data, ckpt["il_weight"], ckpt["lr"], ckpt["iteration"],
+    state = rlil.RunState(cfg, policy, model, data, ckpt["il_weight"], ckpt["iteration"],
                           ckpt["metrics"])
     state.set_rng_state(ckpt["rng"])
     return state

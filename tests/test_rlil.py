@@ -49,6 +49,8 @@ def test_tiny_run_writes_every_output(tmp_path, cache):
         assert row["distance_min_m"] <= row["distance_m"] <= row["distance_max_m"]
         for key in ("il_weight", "model_loss", "seconds"):
             assert key in row
+    for row in saved["iterations"][1:]:                  # model vs simulator, once there is a model
+        assert math.isfinite(row["model_progress_m"]) and math.isfinite(row["sim_progress_m"])
     assert (tmp_path / "metrics.csv").read_text().splitlines()[0].startswith("iteration,distance_m")
     assert len(metrics) == 3
     policy = torch.load(tmp_path / "policy.pt", weights_only=False)
@@ -91,7 +93,7 @@ def test_each_phase_runs_alone(cache):
     assert np.isfinite(rlil.pretrain_bc(policy, demo, cfg, rng))                      # line 1
     model.fit_normalization([(sim2d.design_graph("lnwwnl"), *data["lnwwnl"].transitions())])
     assert np.isfinite(rlil.train_model(model, data, cfg, 5, rng))                    # line 5
-    out = rlil.optimize_policy(policy, model, data, demo, 0.1, 1e-3, cfg, rng)        # lines 7-26
+    out = rlil.optimize_policy(policy, model, data, demo, 0.1, cfg, rng)        # lines 7-26
     assert np.isfinite(out["rl_loss"]) and np.isfinite(out["il_loss"])
     new = rlil.collect_policy_rollouts(policy, "lnwwnl", cfg, rng)                    # lines 28-29
     assert new.actions.shape == (2 * cfg.policy_episodes, 20, 6)
@@ -133,18 +135,33 @@ def test_il_weight_decays(tmp_path, cache):
     assert rl_only[1]["il_weight"] == 0.0
 
 
-def test_adaptive_learning_rate_reverts_on_worse_validation(monkeypatch):
-    cfg = tiny(policy_steps=4, validate_every=2, lr_drop=0.5)
+def validated_phase(monkeypatch, values, policy_steps):
+    """optimize_policy with validation rewards `values` (the phase's start, then each check)."""
+    cfg = tiny(policy_steps=policy_steps, validate_every=2, lr_drop=0.5, policy_lr=1e-3)
     rng = rlil.seed_everything(0)
     data = {"wnwwnw": rlil.collect_random_rollouts("wnwwnw", cfg, rng)}
     policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
-    start = {k: v.clone() for k, v in policy.state_dict().items()}
-    values = iter([1.0, 0.5, 0.25])              # every check is worse than the one before
+    values = iter(values)
     monkeypatch.setattr(rlil, "validation_reward", lambda *a, **k: next(values))
-    out = rlil.optimize_policy(policy, model, data, {}, 0.0, 1e-3, cfg, rng)
+    start = {k: v.clone() for k, v in policy.state_dict().items()}
+    return policy, start, rlil.optimize_policy(policy, model, data, {}, 0.0, cfg, rng)
+
+
+def test_adaptive_learning_rate_reverts_below_the_phase_start(monkeypatch):
+    policy, start, out = validated_phase(monkeypatch, [1.0, 0.5, 0.25], policy_steps=4)
     assert out["reverts"] == 2 and out["lr"] == pytest.approx(1e-3 * 0.25)
     for k, v in policy.state_dict().items():     # reverted twice, to the start
         assert torch.equal(v, start[k]), k
+
+
+def test_adaptive_learning_rate_keeps_a_dip_above_the_phase_start(monkeypatch):
+    """Sec. III-J compares with the phase's start: 2.0 then 1.5 is worse than the last check
+    but better than the start (1.0), so nothing reverts; 0.5 reverts to the last check."""
+    policy, start, out = validated_phase(monkeypatch, [1.0, 2.0, 1.5], policy_steps=4)
+    assert out["reverts"] == 0 and out["lr"] == 1e-3
+    assert not all(torch.equal(v, start[k]) for k, v in policy.state_dict().items())
+    _, _, out = validated_phase(monkeypatch, [1.0, 2.0, 0.5], policy_steps=4)
+    assert out["reverts"] == 1 and out["validation_reward"] == 2.0
 
 
 def test_non_finite_loss_is_reverted(monkeypatch):
@@ -154,7 +171,7 @@ def test_non_finite_loss_is_reverted(monkeypatch):
     policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
     real = sim2d.reward
     monkeypatch.setattr(rlil.sim2d, "reward", lambda *a: real(*a) * float("nan"))
-    out = rlil.optimize_policy(policy, model, data, {}, 0.0, 1e-3, cfg, rng)
+    out = rlil.optimize_policy(policy, model, data, {}, 0.0, cfg, rng)
     assert out["reverts"] == 2
     assert all(torch.isfinite(p).all() for p in policy.parameters())
 
@@ -208,3 +225,19 @@ def test_algorithm1_in_memory_matches_the_command_line_run(tmp_path, cache):
     on_disk = train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
     assert strip_times(state.metrics) == strip_times(on_disk)
     assert state.iteration == 1 and state.il_weight == pytest.approx(cfg.il_weight * cfg.il_decay)
+
+
+def test_model_bias_compares_model_and_simulator_progress():
+    """model_bias rolls the policy out T steps in the model from the evaluation starts and
+    reads the simulator's progress over the same T steps."""
+    cfg = tiny(horizon=4)
+    graph = sim2d.design_graph("car")
+
+    class Drifts(torch.nn.Module):            # a model in which every action moves x by 0.1 m
+        def forward(self, s, a, graph):
+            return s + torch.nn.functional.one_hot(torch.tensor(0), s.shape[-1]) * 0.1
+
+    sim_states = np.zeros((cfg.eval_steps + 1, 3, graph.state_dim))
+    sim_states[..., 0] = 0.05 * np.arange(cfg.eval_steps + 1)[:, None]                # 0.05 m per step
+    model_m, sim_m = rlil.model_bias(rlil.ModularPolicy(cfg.gnn), Drifts(), "car", sim_states, cfg)
+    assert model_m == pytest.approx(0.4) and sim_m == pytest.approx(0.2)
