@@ -70,8 +70,8 @@ class Config:
     validate_every: int = 20         # steps between validation checks
     validation_multiple: int = 10    # validation set = this many batches of initial states
     il_weight: float = 10.0          # lambda at iteration 1 (eqn. RLIL_loss).  With 1.0 the RL term,
-                                     # through a model it exploits, wore the cloned hexapod gait down
-                                     # (11.5 m -> 0.9 m by iteration 2); 10 kept it (README, Results)
+                                     # through a model that undervalues walking, wore the cloned
+                                     # hexapod gait down faster (README, Results); 1-10
     il_decay: float = 0.5            # lambda <- il_decay * lambda after every iteration (line 30)
     il_batch: int = 32               # demo windows per design per step
     il_window: int = 8               # control steps per demo window (recurrent policy)
@@ -362,8 +362,9 @@ def model_bias(policy: ModularPolicy, model: ModularModel, design: str, sim_stat
     evaluation starts, predicted by rolling the policy out in the model, and measured in the
     simulator (sim_states (steps+1, n, S) from `evaluate_policy`).  Means over starts.
 
-    A policy optimised through a model drifts to where the model is too optimistic; a
-    model figure well above the simulator's is that drift (model bias, Sec. III-H).
+    The two differ by the model's bias along the policy's own path (Sec. III-H): well
+    above the simulator's figure, the policy is exploiting model errors; well below,
+    the model undervalues what the policy does, and the RL term pulls away from it.
     """
     graph, T = sim2d.design_graph(design), cfg.horizon
     s0 = torch.as_tensor(sim_states[0], dtype=torch.float32)                       # (n, S)

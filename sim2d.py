@@ -256,13 +256,14 @@ def nominal_joint_angles(graph: DesignGraph):
     return np.tile([HIP_NOMINAL, KNEE_NOMINAL], (graph.n_legs, 1))
 
 
-def reward(s, a, s_next, graph: DesignGraph) -> torch.Tensor:
+def reward(s, a, s_next, graph: DesignGraph):
     """r(s_t, a_t, s_t+1) (Sec. III-F), one value per robot, differentiable.
 
     Forward progress in metres, minus small penalties on pitch, control effort
     and leg-joint distance from the nominal pose.  Summed over 200 control
     steps the progress term is the paper's metric, distance travelled.
-    s, s_next: (..., S) tensors; a: (..., A) normalised actions.
+    s, s_next: (..., S); a: (..., A) normalised actions; torch tensors (model roll-outs,
+    with gradients) or numpy arrays (the simulator), the same arithmetic either way.
     """
     progress = s_next[..., 0] - s[..., 0]                              # (...,) metres
     pitch_cost = W_PITCH * s_next[..., 2] ** 2
@@ -536,14 +537,13 @@ class World:
             for _ in range(STEPS_PER_ACTION):
                 space.step(PHYSICS_DT)
         s, s_next = self.state, self.read_state()
-        with torch.no_grad():
-            r = reward(torch.from_numpy(s), torch.from_numpy(actions), torch.from_numpy(s_next), self.graph)
+        r = reward(s, actions, s_next, self.graph)       # numpy here: a third of torch's cost on tiny arrays
         self.state, self.t = s_next, self.t + 1
         flipped = np.abs(s_next[:, 2]) > FLIP_PITCH
         self.terminated |= flipped
         truncated = np.full(self.n, self.t >= self.max_steps)
         info = {"state": s_next, "flipped": flipped}
-        return self._observe(s_next), r.numpy(), self.terminated.copy(), truncated, info
+        return self._observe(s_next), r, self.terminated.copy(), truncated, info
 
 
 # ----------------------------------------------------------------------------

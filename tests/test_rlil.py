@@ -93,7 +93,7 @@ def test_each_phase_runs_alone(cache):
     assert np.isfinite(rlil.pretrain_bc(policy, demo, cfg, rng))                      # line 1
     model.fit_normalization([(sim2d.design_graph("lnwwnl"), *data["lnwwnl"].transitions())])
     assert np.isfinite(rlil.train_model(model, data, cfg, 5, rng))                    # line 5
-    out = rlil.optimize_policy(policy, model, data, demo, 0.1, cfg, rng)        # lines 7-26
+    out = rlil.optimize_policy(policy, model, data, demo, 0.1, cfg, rng)              # lines 7-26
     assert np.isfinite(out["rl_loss"]) and np.isfinite(out["il_loss"])
     new = rlil.collect_policy_rollouts(policy, "lnwwnl", cfg, rng)                    # lines 28-29
     assert new.actions.shape == (2 * cfg.policy_episodes, 20, 6)
