@@ -239,26 +239,24 @@ def check_demonstrable(graph: sim2d.DesignGraph) -> None:
 
 
 class Demonstrator:
-    """The hand-crafted expert of one design, act(obs, state) -> (N, A), with its clock and filter.
+    """The hand-crafted expert of one design, act(obs, state, t) -> (N, A), with its filter.
 
     It reads the true state (a hand-crafted controller may; the policy gets
     only obs).  Call it once per control step from the reset on, e.g. with
-    sim2d.evaluate(design, Demonstrator(design)); make a new one per episode.
+    sim2d.simulate(design, Demonstrator(design)); make a new one per episode.
     """
 
     def __init__(self, design: str | sim2d.DesignGraph, cfg: DemoConfig = DemoConfig()):
         self.graph = sim2d.design_graph(design)
         check_demonstrable(self.graph)
-        self.cfg, self.t, self.estimate = cfg, 0, None
+        self.cfg, self.estimate = cfg, None
 
-    def __call__(self, obs: dict, state: np.ndarray) -> np.ndarray:
+    def __call__(self, obs: dict, state: np.ndarray, t: int) -> np.ndarray:
         if self.estimate is None:
             self.estimate = state[:, [1, 2, 3]]                  # (N, 3) y, pitch, vx at reset
         else:
             self.estimate = low_pass(self.estimate, state, self.cfg)
-        a = demo_actions(self.graph, state, self.t, self.estimate, self.cfg)   # (N, A)
-        self.t += 1
-        return a
+        return demo_actions(self.graph, state, t, self.estimate, self.cfg)   # (N, A)
 
 
 # ----------------------------------------------------------------------------
@@ -328,23 +326,15 @@ def collect_demos(design: str, episodes: int = 50, steps: int = 100, seed: int =
                   cfg: DemoConfig = DemoConfig()) -> DemoData:
     """Run the demonstrator on `episodes` perturbed robots at once for `steps` control steps."""
     graph = validate_request(design, episodes, steps)
-    world, act = sim2d.World(graph, n=episodes, max_steps=steps), Demonstrator(graph, cfg)
-    obs, info = world.reset(seed=demo_seed(graph.code, seed))   # perturbed initial states, p(s)
-    states, observations, actions = [info["state"]], [], []
-    for _ in range(steps):
-        a = act(obs, info["state"])                              # (E, A)
-        observations.append(obs)                                 # o_t: what the policy sees
-        actions.append(a)                                        # a_t: what it should do
-        obs, _, terminated, _, info = world.step(a)
-        states.append(info["state"])
-    states = np.stack(states, axis=1)                            # (E, T + 1, S)
+    run = sim2d.simulate(graph, Demonstrator(graph, cfg), n=episodes, steps=steps,
+                         seed=demo_seed(graph.code, seed))       # perturbed initial states, p(s)
     return DemoData(
         design=graph.code,
-        obs={k: np.stack([o[k] for o in observations], axis=1) for k in observations[0]},  # (E, T, ...)
-        actions=np.stack(actions, axis=1),                       # (E, T, A)
-        states=states,
-        distance_m=states[:, -1, 0] - states[:, 0, 0],           # (E,)
-        flipped=terminated.copy(),                               # (E,) sticky: flipped at any step
+        obs=run.obs,                                             # o_t: what the policy sees, (E, T, ...)
+        actions=run.actions,                                     # a_t: what it should do, (E, T, A)
+        states=run.states,                                       # (E, T + 1, S)
+        distance_m=run.distance_m,                               # (E,)
+        flipped=run.flipped,                                     # (E,) sticky: flipped at any step
         meta={"seed": seed, "episodes": episodes, "steps": steps, "config": asdict(cfg),
               "source": source_hash()})
 

@@ -38,6 +38,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 import torch.nn as nn
 
@@ -310,21 +311,18 @@ class ModularModel(nn.Module):
 # ----------------------------------------------------------------------------
 def random_transitions(design: str, n_robots: int, steps: int, seed: int):
     """Sim transitions (s, a, s_next), (n_robots * steps, .) float32, random spline actions (Sec. III-B)."""
-    world = sim2d.World(design, n_robots, max_steps=steps, seed=seed)
-    _, info = world.reset(seed=seed)
-    actions = sim2d.random_spline_actions(world.np_random, n_robots, world.graph.action_dim, steps)
-    s, s_next = [], []
-    for t in range(steps):
-        s.append(torch.as_tensor(info["state"], dtype=torch.float32))
-        _, _, _, _, info = world.step(actions[:, t])
-        s_next.append(torch.as_tensor(info["state"], dtype=torch.float32))
-    a = torch.as_tensor(actions, dtype=torch.float32).transpose(0, 1).flatten(0, 1)   # step-major like s
-    return torch.cat(s), a, torch.cat(s_next)
+    graph = sim2d.design_graph(design)
+    actions = sim2d.random_spline_actions(np.random.default_rng(seed), n_robots, graph.action_dim, steps)
+    run = sim2d.simulate(graph, lambda obs, s, t: actions[:, t], n=n_robots, steps=steps, seed=seed)
+    states = torch.as_tensor(run.states, dtype=torch.float32)                            # (n, T + 1, S)
+    return (states[:, :-1].flatten(0, 1), torch.as_tensor(run.actions, dtype=torch.float32).flatten(0, 1),
+            states[:, 1:].flatten(0, 1))
 
 
 def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_batch: int = 512,
           repeats: int = 5, cfg: GNNConfig = GNNConfig()) -> dict:
     """Best-of-`repeats` speed of a policy update through model roll-outs, and of a model update."""
+    from modular_rlil_minimal import rollout    # Algorithm 1 lines 10-15, the code the training runs
     torch.manual_seed(0)
     graph = sim2d.design_graph(design)
     states, actions, next_states = random_transitions(design, n_robots=32, steps=100, seed=0)
@@ -334,12 +332,8 @@ def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_ba
     model_opt = torch.optim.Adam(model.parameters(), lr=1e-3)
 
     def policy_update():                        # eqn. (RL_loss) through the frozen model, Sec. III-F
-        s, h, R = states[torch.randint(len(states), (batch,))], policy.initial_hidden(batch, graph), 0.0
-        for _ in range(horizon):
-            a, h = policy.act(sim2d.observe(s, graph, sim2d.obs_noise_like(s, graph)), graph, h)
-            s_next = model(s, a, graph)                                                     # (batch, S)
-            R = R + sim2d.reward(s, a, s_next, graph)                                       # (batch,)
-            s = s_next
+        s0 = states[torch.randint(len(states), (batch,))]
+        R, _, _ = rollout(policy, model, s0, policy.initial_hidden(batch, graph), graph, horizon)
         loss = -R.mean()
         policy_opt.zero_grad()
         loss.backward()

@@ -1,25 +1,31 @@
-"""Algorithm 1 of the paper (MBRL with IL for modular robots) as a chain of named functions.
+"""Algorithm 1 of the paper (MBRL with IL for modular robots), read top to bottom.
 
 Paper: Whitman & Choset, "Learning Modular Robot Locomotion from Demonstrations",
-Sec. III and Algorithm 1.  Each function names the Algorithm 1 lines or the
-equation it implements:
+Sec. III and Algorithm 1.  The losses and phases are named functions; the
+algorithm itself is the one loop in `algorithm1`, its lines marked `# line N`
+in Algorithm 1's order:
 
     pretrain_bc              line 1      behavioural cloning on T_demo, eqn. (IL_loss)
     collect_random_rollouts  line 2      random spline actions (Sec. III-B)
     train_model              line 5      modular model f~_phi on T_train (Sec. III-C)
-    optimize_policy          lines 7-26  K steps of L = L_RL + lambda L_IL, buffer of
-                                         initial states + hidden states, adaptive
-                                         learning rate with validation revert
-    collect_policy_rollouts  lines 28-29 policy data without and with correlated noise
+    optimize_policy          lines 7-26  K steps of L = L_RL + lambda L_IL:
+      init_buffer / refresh_buffer       lines 7, 22-25: initial states with hidden states
+      rl_loss, rollout                   lines 9-16, eqn. (RL_loss)
+      il_loss                            lines 17-19, eqn. (IL_loss), + entropy penalty (Sec. III-J)
+      rlil_loss                          line 19, eqn. (RLIL_loss)
+      AdaptiveLearningRate               Sec. III-J: validation reward, revert, lower rate
+    collect_policy_rollouts  lines 27-29 policy data without and with correlated noise
     decay_il_weight          line 30
-    algorithm1               the loop, with an evaluation in the simulator per iteration
+    evaluate_iteration       not in Algorithm 1: Sec. IV's distance in 200 steps, per iteration
 
 CPU, a few minutes (the command line is train.py):
     python train.py --train leg_none_wheel --demos hexapod car
+    python train.py --train car --preset tiny          # 30-second class demo
 """
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -32,58 +38,117 @@ import sim2d
 from gnn import GNNConfig, ModularModel, ModularPolicy
 
 
+# ----------------------------------------------------------------------------
+# Config: every knob of Algorithm 1 (train.py makes each field a flag; the
+# comment after a field is its help text)
+# ----------------------------------------------------------------------------
 @dataclass
 class Config:
     """Every knob of Algorithm 1.  Defaults: the 5-minute CPU budget of the README."""
 
-    train: tuple[str, ...] = ("leg_none_wheel",)   # d_train; several designs sum their RL losses
-    demos: tuple[str, ...] = ()      # D_demo; empty = plain RL (lambda = 0, no pre-training)
+    train: tuple[str, ...] = ("leg_none_wheel",)   # d_train: design(s) trained; several sum their RL losses
+    demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain RL (lambda = 0, no pre-training)
     iters: int = 5                   # outer iterations of Algorithm 1 (paper: 5)
     seed: int = 0                    # the one seed everything derives from
+    threads: int = 2                 # torch CPU threads; results depend on it (float sums round differently)
     # Line 2 / Sec. III-B: random spline actions
-    random_episodes: int = 32        # episodes per training design (paper: not stated)
+    random_episodes: int = 32        # random-action episodes per training design (paper: not stated)
     episode_steps: int = 100         # control steps per collected episode (paper: 100)
     random_action_std: float = 1.0   # std of the spline knots (normalised action units)
-    # Lines 28-29: data from the policy
-    policy_episodes: int = 16        # per design and iteration, once without and once with noise
-    policy_noise_std: float = 0.3    # knot std of the correlated noise (< random_action_std)
+    # Lines 27-29: data from the policy
+    policy_episodes: int = 16        # policy episodes per design and iteration, once without and once with noise
+    policy_noise_std: float = 0.3    # knot std of the policy data's correlated noise (< random_action_std)
     # Demonstrations (Sec. III-D): the paper's 50 x 100
-    demo_episodes: int = 50
-    demo_steps: int = 100
+    demo_episodes: int = 50          # demonstration episodes per demo design (paper: 50)
+    demo_steps: int = 100            # control steps per demonstration episode (paper: 100)
     # Line 1: behavioural cloning
-    bc_steps: int = 1000             # Adam steps of pre-training (0 to skip); 300 cloned the
+    bc_steps: int = 1000             # Adam steps of pre-training, 0 to skip; 300 cloned the
                                      # hexapod gait to 4-11 m in 200 steps, 1000 to 8-11 m
     # Line 5: model learning
-    model_steps: int = 1500          # Adam steps at the first iteration (then `finetune_steps`)
-    finetune_steps: int = 500        # Adam steps in later iterations (fine-tuning)
-    model_batch: int = 512           # transitions per design per step
-    model_lr: float = 1e-3
+    model_steps: int = 1500          # model Adam steps at the first iteration
+    finetune_steps: int = 500        # model Adam steps in later iterations (fine-tuning)
+    model_batch: int = 512           # transitions per design per model step
+    model_lr: float = 1e-3           # model learning rate
     # Lines 7-26: policy optimisation
-    policy_steps: int = 120          # K, gradient steps per iteration
+    policy_steps: int = 120          # K, policy gradient steps per iteration
     horizon: int = 20                # T, model roll-out length (truncated BPTT window)
-    batch: int = 64                  # N_batch, initial states per step and design
+    batch: int = 64                  # N_batch, initial states per policy step and design
     buffer_size: int = 256           # |B|, initial states with hidden states per design
-    update_rate: int = 10            # every this many steps, refresh half of B (lines 23-25)
+    update_rate: int = 10            # every this many steps, refresh half of B (lines 22-25)
     policy_lr: float = 1e-3          # learning rate at the start of every policy phase (adapted, Sec. III-J)
-    lr_drop: float = 0.5             # factor applied on every validation revert
+    lr_drop: float = 0.5             # factor on the learning rate at every validation revert
     grad_clip: float = 10.0          # max gradient norm of a policy step (BPTT through T model steps)
-    validate_every: int = 20         # steps between validation checks
-    validation_multiple: int = 10    # validation set = this many batches of initial states
-    il_weight: float = 10.0          # lambda at iteration 1 (eqn. RLIL_loss).  With 1.0 the RL term,
+    validate_every: int = 20         # policy steps between validation checks
+    validation_multiple: int = 10    # validation set = this many batches of initial states (paper: 10)
+    il_weight: float = 10.0          # lambda at iteration 1 (eqn. RLIL_loss); with 1.0 the RL term,
                                      # through a model that undervalues walking, wore the cloned
                                      # hexapod gait down faster (README, Results); 1-10
     il_decay: float = 0.5            # lambda <- il_decay * lambda after every iteration (line 30)
     il_batch: int = 32               # demo windows per design per step
-    il_window: int = 8               # control steps per demo window (recurrent policy)
-    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations
+    il_window: int = 8               # control steps per demo window (the policy is recurrent)
+    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J)
     # Evaluation (Sec. IV): distance in 200 control steps
-    eval_episodes: int = 8
-    eval_steps: int = 200
+    eval_episodes: int = 8           # perturbed starts per evaluation
+    eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
+# Named budgets.  "tiny" is the tests' budget and a 30-second class demo
+# (`python train.py --train car --preset tiny`): the car learns to drive in it.
+PRESETS = {
+    "default": {},
+    "tiny": dict(iters=2, threads=1, random_episodes=8, episode_steps=40, policy_episodes=4,
+                 demo_episodes=8, demo_steps=40, bc_steps=100, model_steps=300, finetune_steps=100,
+                 model_batch=256, policy_steps=30, horizon=10, batch=16, buffer_size=32, update_rate=5,
+                 validate_every=10, validation_multiple=2, il_batch=8, il_window=4, eval_episodes=4,
+                 eval_steps=100, gnn=GNNConfig(hidden=32)),
+}
+
+
+def preset(name: str = "default", **overrides) -> Config:
+    """The Config of a named budget, with some fields overridden."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}: use one of {', '.join(PRESETS)}")
+    return Config(**{**PRESETS[name], **overrides})
+
+
+AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
+    "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
+    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0}
+
+
+def validate_config(cfg: Config) -> Config:
+    """`cfg` with its designs as six-letter codes, or a one-line ValueError naming the first
+    field that is out of range and what is accepted."""
+    if not cfg.train:
+        raise ValueError("train: name at least one design to train")
+    cfg = dataclasses.replace(cfg, train=tuple(sim2d.parse_design(d) for d in cfg.train),
+                              demos=tuple(sim2d.parse_design(d) for d in cfg.demos))
+    for design in cfg.demos:
+        demo_lib.check_demonstrable(sim2d.design_graph(design))
+    numeric = [(f.name, getattr(cfg, f.name)) for f in dataclasses.fields(cfg) if f.name not in ("train", "demos", "gnn")]
+    numeric += [(f.name, getattr(cfg.gnn, f.name)) for f in dataclasses.fields(cfg.gnn)]
+    for name, value in numeric:
+        low = AT_LEAST.get(name)
+        if name.startswith("log_std"):
+            ok, accepted = math.isfinite(value), "a finite number"
+        elif low is None:
+            ok, accepted = math.isfinite(value) and value > 0, "positive"
+        else:
+            ok, accepted = math.isfinite(value) and value >= low, f"at least {low}"
+        if not ok:
+            raise ValueError(f"{name} must be {accepted}, got {value}")
+    if cfg.lr_drop > 1 or cfg.il_decay > 1:
+        raise ValueError(f"lr_drop and il_decay must be at most 1, got {cfg.lr_drop} and {cfg.il_decay}")
+    if cfg.il_window > cfg.demo_steps:
+        raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
+    if cfg.gnn.log_std_min >= cfg.gnn.log_std_max:
+        raise ValueError(f"log_std_min ({cfg.gnn.log_std_min}) must be below log_std_max ({cfg.gnn.log_std_max})")
+    return cfg
+
+
 # ----------------------------------------------------------------------------
-# Data: transitions T_train per design
+# Data: T_train, transitions per design, collected in the simulator
 # ----------------------------------------------------------------------------
 @dataclass
 class Trajectories:
@@ -92,6 +157,11 @@ class Trajectories:
     design: str
     states: torch.Tensor
     actions: torch.Tensor
+
+    @classmethod
+    def from_episodes(cls, run: sim2d.Episodes) -> "Trajectories":
+        return cls(run.design, torch.tensor(run.states, dtype=torch.float32),
+                   torch.tensor(run.actions, dtype=torch.float32))
 
     def transitions(self):
         """(s, a, s') flattened over episodes and time: (E*T, S), (E*T, A), (E*T, S)."""
@@ -103,37 +173,32 @@ class Trajectories:
                             torch.cat([self.actions, other.actions]))
 
 
-def run_episodes(design: str, act, n: int, steps: int, rng: np.random.Generator) -> Trajectories:
-    """Run act(obs, state, t) -> (n, A) on n perturbed starts in the simulator."""
-    world = sim2d.World(design, n=n, max_steps=steps)
-    obs, info = world.reset(seed=int(rng.integers(2 ** 31)))
-    states, actions = [info["state"]], []
-    for t in range(steps):
-        a = np.clip(act(obs, info["state"], t), -1.0, 1.0)
-        obs, _, _, _, info = world.step(a)
-        states.append(info["state"])
-        actions.append(a)
-    return Trajectories(world.graph.code, torch.tensor(np.stack(states, 1), dtype=torch.float32),
-                        torch.tensor(np.stack(actions, 1), dtype=torch.float32))
+def new_seed(rng: np.random.Generator) -> int:
+    """A simulator seed drawn from the run's generator."""
+    return int(rng.integers(2 ** 31))
 
 
 def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
     """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over 100 steps."""
     graph = sim2d.design_graph(design)
     actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
-                                          std=cfg.random_action_std)
-    return run_episodes(design, lambda obs, s, t: actions[:, t], cfg.random_episodes, cfg.episode_steps, rng)
+                                          std=cfg.random_action_std)                  # (E, T, A)
+    return Trajectories.from_episodes(sim2d.simulate(graph, lambda obs, s, t: actions[:, t], cfg.random_episodes,
+                                                     cfg.episode_steps, seed=new_seed(rng)))
 
 
 class PolicyActor:
-    """Runs the recurrent policy in the simulator: numpy obs in, numpy actions out."""
+    """The recurrent policy as a simulator controller: act(obs, state, t) -> (n, A) numpy actions.
+
+    The policy's mean action, plus noise[:, t] when a noise array (n, T, A) is given.
+    """
 
     def __init__(self, policy: ModularPolicy, design: str, n: int, noise: np.ndarray | None = None):
         self.policy, self.graph, self.noise = policy, sim2d.design_graph(design), noise
         self.hidden = policy.initial_hidden(n, self.graph)
 
     @torch.no_grad()
-    def __call__(self, obs: dict, state=None, t: int = 0) -> np.ndarray:
+    def __call__(self, obs: dict, state, t: int) -> np.ndarray:
         obs = {k: torch.as_tensor(v, dtype=torch.float32) for k, v in obs.items()}
         mean, self.hidden = self.policy.act(obs, self.graph, self.hidden, deterministic=True)
         a = mean.numpy().astype(float)
@@ -142,26 +207,32 @@ class PolicyActor:
 
 def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
                             rng: np.random.Generator) -> Trajectories:
-    """Algorithm 1 lines 28-29: the policy without noise, then with time-correlated noise
-    (the spline noise of Sec. III-B with a smaller std)."""
+    """Algorithm 1 line 28 (Sec. III-H): the policy without noise, then with time-correlated
+    noise (the spline noise of Sec. III-B with the smaller std `policy_noise_std`)."""
     graph, n, steps = sim2d.design_graph(design), cfg.policy_episodes, cfg.episode_steps
-    clean = run_episodes(design, PolicyActor(policy, design, n), n, steps, rng)
-    noise = sim2d.random_spline_actions(rng, n, graph.action_dim, steps, std=cfg.policy_noise_std)
-    noisy = run_episodes(design, PolicyActor(policy, design, n, noise), n, steps, rng)
-    return clean + noisy
+    clean = sim2d.simulate(graph, PolicyActor(policy, design, n), n, steps, seed=new_seed(rng))
+    noise = sim2d.random_spline_actions(rng, n, graph.action_dim, steps, std=cfg.policy_noise_std)  # (n, T, A)
+    noisy = sim2d.simulate(graph, PolicyActor(policy, design, n, noise), n, steps, seed=new_seed(rng))
+    return Trajectories.from_episodes(clean) + Trajectories.from_episodes(noisy)
 
 
 # ----------------------------------------------------------------------------
 # Line 5: the model
 # ----------------------------------------------------------------------------
-def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config, steps: int,
-                rng: np.random.Generator) -> float:
+def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
+                first: bool) -> float:
     """Algorithm 1 line 5 (Sec. III-C): supervised regression of the state change on T_train.
 
-    Each Adam step sums the loss of a mini-batch from every training design.
-    Returns the mean loss (normalised MSE) over the last 10 % of the steps.
+    At the first iteration the input and output normalisation is fitted to
+    T_train and the model takes `model_steps` Adam steps; later iterations
+    fine-tune it for `finetune_steps`.  Each step sums the loss of a
+    mini-batch from every training design.  Returns the mean loss
+    (normalised MSE) over the last 10 % of the steps (NaN if no steps).
     """
     flat = {d: traj.transitions() for d, traj in data.items()}
+    if first:
+        model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
+    steps = cfg.model_steps if first else cfg.finetune_steps
     opt = torch.optim.Adam(model.parameters(), lr=cfg.model_lr)
     losses = []
     for _ in range(steps):
@@ -173,11 +244,11 @@ def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config,
         loss.backward()
         opt.step()
         losses.append(loss.item())
-    return float(np.mean(losses[-max(1, steps // 10):]))
+    return float(np.mean(losses[-max(1, steps // 10):])) if losses else float("nan")
 
 
 # ----------------------------------------------------------------------------
-# The losses: eqn. (RL_loss), eqn. (IL_loss) and the entropy penalty
+# The losses: eqn. (RL_loss), eqn. (IL_loss) with the entropy penalty, eqn. (RLIL_loss)
 # ----------------------------------------------------------------------------
 def rollout(policy: ModularPolicy, model: ModularModel, s0, h0, graph, horizon: int,
             deterministic: bool = False):
@@ -198,6 +269,17 @@ def rollout(policy: ModularPolicy, model: ModularModel, s0, h0, graph, horizon: 
         total = total + sim2d.reward(s, a, s_next, graph)               # (B,)
         s = s_next
     return total, s, h
+
+
+def rl_loss(policy: ModularPolicy, model: ModularModel, buffers: dict, cfg: Config, rng) -> torch.Tensor:
+    """Algorithm 1 lines 9-16, eqn. (RL_loss): L_RL = -R, the batch mean of the T-step model
+    return from initial states and hidden states sampled from B, summed over d_train."""
+    loss = 0.0
+    for design, buffer in buffers.items():
+        s0, h0 = buffer.sample(cfg.batch, rng)                                          # line 9
+        R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon)  # lines 10-15
+        loss = loss - R.mean()                                                          # line 16
+    return loss
 
 
 def il_loss(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.Generator):
@@ -222,8 +304,14 @@ def il_loss(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.
     return loss, entropy
 
 
+def rlil_loss(loss_rl, loss_il, il_weight: float):
+    """eqn. (RLIL_loss): L = L_RL + lambda L_IL."""
+    return loss_rl + il_weight * loss_il
+
+
 def pretrain_bc(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.Generator) -> float:
-    """Algorithm 1 line 1: behavioural cloning, minimise L_IL over all demo designs."""
+    """Algorithm 1 line 1: behavioural cloning, minimise L_IL over all demo designs.
+    Returns the mean IL loss over the last 10 % of the steps."""
     opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr)
     losses = []
     for _ in range(cfg.bc_steps):
@@ -264,7 +352,7 @@ def init_buffer(policy, data: Trajectories, cfg: Config, rng) -> Buffer:
 
 @torch.no_grad()
 def refresh_buffer(buffer: Buffer, policy, model, data: Trajectories, cfg: Config, rng) -> None:
-    """Algorithm 1 lines 23-25: run the policy T/2 steps in the model from new random
+    """Algorithm 1 lines 23-24: run the policy T/2 steps in the model from new random
     states and overwrite the second half of B with the states and hidden states reached."""
     graph, half = sim2d.design_graph(data.design), cfg.buffer_size // 2
     s0 = sample_sim_states(data, cfg.buffer_size - half, rng)
@@ -284,70 +372,86 @@ def validation_reward(policy, model, val_states: dict, cfg: Config) -> float:
     return total
 
 
+class AdaptiveLearningRate:
+    """Sec. III-J's rule: if the validation reward falls below its value at the phase's start,
+    revert the policy (and Adam) to the last check and multiply the learning rate by `lr_drop`.
+
+    `check(value)` is called every `validate_every` steps; a check that passes
+    becomes the new point to revert to.  `revert()` alone handles a step whose
+    loss or gradient is not finite.
+    """
+
+    def __init__(self, policy, opt, start_value: float, lr_drop: float):
+        self.policy, self.opt, self.lr_drop = policy, opt, lr_drop
+        self.start = self.last = start_value            # the phase's reference, the last passed check
+        self.lr, self.reverts = opt.param_groups[0]["lr"], 0
+        self.snapshot()
+
+    def snapshot(self) -> None:
+        self.saved = (copy.deepcopy(self.policy.state_dict()), copy.deepcopy(self.opt.state_dict()))
+
+    def revert(self) -> None:
+        self.policy.load_state_dict(self.saved[0])
+        self.opt.load_state_dict(self.saved[1])
+        self.lr *= self.lr_drop
+        for group in self.opt.param_groups:
+            group["lr"] = self.lr
+        self.reverts += 1
+
+    def check(self, value: float) -> None:
+        if value < self.start or not math.isfinite(value):
+            self.revert()
+        else:
+            self.last = value
+            self.snapshot()
+
+
+def gradient_step(opt, loss, policy, grad_clip: float) -> bool:
+    """Algorithm 1 line 21: one clipped gradient-descent step on dL/dtheta.
+    Returns False, without stepping, when the loss or the gradient is not finite."""
+    opt.zero_grad()
+    loss.backward()
+    grad_norm = torch.nn.utils.clip_grad_norm_(policy.parameters(), grad_clip)
+    if not (torch.isfinite(loss) and torch.isfinite(grad_norm)):
+        return False
+    opt.step()
+    return True
+
+
 def optimize_policy(policy: ModularPolicy, model: ModularModel, data: dict[str, Trajectories],
                     demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator) -> dict:
-    """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty).
+    """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen.
 
-    The learning rate adapts (Sec. III-J "Implementation details"): the phase
-    starts at `policy_lr` and computes the validation reward; every
-    `validate_every` steps it is computed again, and if it is lower than at the
-    phase's start the parameters revert to the last check and the rate drops by
-    `lr_drop`.  A non-finite loss or gradient is treated the same way, so the
-    policy never holds a NaN.  Returns the metrics and the final rate.
+    Returns the phase's metrics: RL and IL loss (means of the last 10 steps;
+    il_loss None without IL), the last passed validation reward, reverts and
+    the final learning rate.
     """
-    for p in model.parameters():                      # the model is frozen in this phase
-        p.requires_grad_(False)
-    buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}
+    model.requires_grad_(False)                                                   # frozen in this phase
+    buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}                # line 7
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
-    lr = cfg.policy_lr
-    opt = torch.optim.Adam(policy.parameters(), lr=lr)
-    initial = last = validation_reward(policy, model, val_states, cfg)      # the phase's reference
-    saved = (copy.deepcopy(policy.state_dict()), copy.deepcopy(opt.state_dict()))
-    reverts, rl_values, il_values = 0, [], []
-
-    def revert():
-        nonlocal lr, reverts
-        policy.load_state_dict(saved[0])
-        opt.load_state_dict(saved[1])
-        lr *= cfg.lr_drop
-        for group in opt.param_groups:
-            group["lr"] = lr
-        reverts += 1
-
-    for k in range(1, cfg.policy_steps + 1):
-        loss_rl = 0.0
-        for design, buffer in buffers.items():                         # lines 9-16, summed over d_train
-            s0, h0 = buffer.sample(cfg.batch, rng)
-            R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon)
-            loss_rl = loss_rl - R.mean()                                # eqn. (RL_loss)
+    opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr)
+    lr_rule = AdaptiveLearningRate(policy, opt, validation_reward(policy, model, val_states, cfg), cfg.lr_drop)
+    rl_values, il_values = [], []
+    for k in range(1, cfg.policy_steps + 1):                                                       # line 8
+        loss_rl = rl_loss(policy, model, buffers, cfg, rng)                                        # lines 9-16
         loss = loss_rl
-        if il_weight > 0 and demo_data:                                # lines 17-20
-            loss_il, entropy = il_loss(policy, demo_data, cfg, rng)
-            loss = loss + il_weight * (loss_il + cfg.entropy_weight * entropy)   # eqn. (RLIL_loss)
+        if il_weight > 0 and demo_data:                                                            # line 17
+            loss_il, entropy = il_loss(policy, demo_data, cfg, rng)                                # line 18
+            loss = rlil_loss(loss_rl, loss_il + cfg.entropy_weight * entropy, il_weight)          # line 19
             il_values.append(loss_il.item())
-        opt.zero_grad()
-        loss.backward()                                                # line 21
-        grad_norm = torch.nn.utils.clip_grad_norm_(policy.parameters(), cfg.grad_clip)
-        if not (torch.isfinite(loss) and torch.isfinite(grad_norm)):
-            revert()
+        if not gradient_step(opt, loss, policy, cfg.grad_clip):                                    # line 21
+            lr_rule.revert()                                  # a non-finite loss or gradient: never step on it
             continue
-        opt.step()
         rl_values.append(loss_rl.item())
-        if k % cfg.update_rate == 0:                                   # lines 22-25
+        if k % cfg.update_rate == 0:                                                               # line 22
             for design, buffer in buffers.items():
-                refresh_buffer(buffer, policy, model, data[design], cfg, rng)
-        if k % cfg.validate_every == 0:                                # adaptive learning rate
-            value = validation_reward(policy, model, val_states, cfg)
-            if value < initial or not math.isfinite(value):
-                revert()
-            else:
-                last = value
-                saved = (copy.deepcopy(policy.state_dict()), copy.deepcopy(opt.state_dict()))
-    for p in model.parameters():
-        p.requires_grad_(True)
+                refresh_buffer(buffer, policy, model, data[design], cfg, rng)                      # lines 23-24
+        if k % cfg.validate_every == 0:                                                            # Sec. III-J
+            lr_rule.check(validation_reward(policy, model, val_states, cfg))
+    model.requires_grad_(True)
     return {"rl_loss": float(np.mean(rl_values[-10:])) if rl_values else float("nan"),
-            "il_loss": float(np.mean(il_values[-10:])) if il_values else float("nan"),
-            "validation_reward": last, "reverts": reverts, "lr": lr}
+            "il_loss": float(np.mean(il_values[-10:])) if il_values else None,
+            "validation_reward": lr_rule.last, "reverts": lr_rule.reverts, "lr": lr_rule.lr}
 
 
 def decay_il_weight(il_weight: float, cfg: Config) -> float:
@@ -355,65 +459,75 @@ def decay_il_weight(il_weight: float, cfg: Config) -> float:
     return il_weight * cfg.il_decay
 
 
+# ----------------------------------------------------------------------------
+# Evaluation (not part of Algorithm 1): Sec. IV's metric and the model's bias
+# ----------------------------------------------------------------------------
+def evaluate_policy(policy: ModularPolicy, design: str, cfg: Config, seed: int) -> sim2d.Episodes:
+    """Sec. IV's metric: distance (m) in `eval_steps` control steps from perturbed starts, mean action."""
+    return sim2d.simulate(design, PolicyActor(policy, design, cfg.eval_episodes), n=cfg.eval_episodes,
+                          steps=cfg.eval_steps, seed=seed)
+
+
 @torch.no_grad()
 def model_bias(policy: ModularPolicy, model: ModularModel, design: str, sim_states: np.ndarray,
                cfg: Config) -> tuple[float, float]:
     """How far the model flatters the policy: progress (m) in the first T steps from the
     evaluation starts, predicted by rolling the policy out in the model, and measured in the
-    simulator (sim_states (steps+1, n, S) from `evaluate_policy`).  Means over starts.
+    simulator (sim_states (n, steps+1, S) from `evaluate_policy`).  Means over starts.
 
     The two differ by the model's bias along the policy's own path (Sec. III-H): well
     above the simulator's figure, the policy is exploiting model errors; well below,
     the model undervalues what the policy does, and the RL term pulls away from it.
     """
     graph, T = sim2d.design_graph(design), cfg.horizon
-    s0 = torch.as_tensor(sim_states[0], dtype=torch.float32)                       # (n, S)
+    s0 = torch.as_tensor(sim_states[:, 0], dtype=torch.float32)                    # (n, S)
     _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
-    return float((s_T[:, 0] - s0[:, 0]).mean()), float((sim_states[T, :, 0] - sim_states[0, :, 0]).mean())
+    return float((s_T[:, 0] - s0[:, 0]).mean()), float((sim_states[:, T, 0] - sim_states[:, 0, 0]).mean())
 
 
-def evaluate_policy(policy: ModularPolicy, design: str, cfg: Config, seed: int) -> dict:
-    """Sec. IV's metric: distance (m) in `eval_steps` control steps from perturbed starts, mean action.
+def eval_seed(cfg: Config) -> int:
+    """Evaluation starts are the same at every iteration (and differ from training data)."""
+    return 1_000_003 + cfg.seed
 
-    Returns sim2d.evaluate's dict: distance_m (n,), flipped (n,), states (steps+1, n, S).
-    """
-    return sim2d.evaluate(design, PolicyActor(policy, design, cfg.eval_episodes),
-                          n=cfg.eval_episodes, steps=cfg.eval_steps, seed=seed)
+
+def evaluate_iteration(policy, model, designs, cfg: Config, i: int) -> dict:
+    """The metrics row of iteration i: distance in the simulator over every training design
+    (mean, min, max), and from iteration 1 on `model_bias`'s pair, averaged over designs."""
+    results = {d: evaluate_policy(policy, d, cfg, eval_seed(cfg)) for d in designs}
+    dist = np.concatenate([r.distance_m for r in results.values()])
+    row = {"iteration": i, "distance_m": float(dist.mean()), "distance_min_m": float(dist.min()),
+           "distance_max_m": float(dist.max())}
+    if i > 0:
+        bias = [model_bias(policy, model, d, r.states, cfg) for d, r in results.items()]
+        row["model_progress_m"], row["sim_progress_m"] = (float(np.mean(v)) for v in zip(*bias))
+    return row
 
 
 # ----------------------------------------------------------------------------
-# The whole algorithm, resumable between iterations
+# Everything a run carries between iterations, and the one seeding point
 # ----------------------------------------------------------------------------
 @dataclass
-class RunState:
-    """Everything Algorithm 1 carries from one iteration to the next (what a resume needs)."""
+class Run:
+    """What Algorithm 1 carries from one iteration to the next: enough to resume a run."""
 
     cfg: Config
     policy: ModularPolicy
     model: ModularModel
     data: dict                       # T_train: design code -> Trajectories
-    il_weight: float
-    iteration: int = 0               # last finished iteration (0: after line 2 and iteration-0 evaluation)
-    metrics: list = field(default_factory=list)
-    rng: np.random.Generator | None = None
+    il_weight: float                 # lambda for the next iteration
+    rng: np.random.Generator
+    iteration: int = 0               # last finished iteration (0: lines 1-2 and their evaluation)
+    metrics: list = field(default_factory=list)   # one row per finished iteration, 0 included
 
     def rng_state(self) -> dict:
         return {"numpy": self.rng.bit_generator.state, "torch": torch.get_rng_state()}
 
-    def set_rng_state(self, state: dict) -> None:
-        self.rng = np.random.default_rng()
-        self.rng.bit_generator.state = state["numpy"]
+    @staticmethod
+    def rng_from_state(state: dict) -> np.random.Generator:
+        rng = np.random.default_rng()
+        rng.bit_generator.state = state["numpy"]
         torch.set_rng_state(state["torch"])
-
-
-class ProgressLog:
-    """Prints one line per phase, prefixed with the seconds since the log was made."""
-
-    def __init__(self):
-        self.t0 = time.perf_counter()
-
-    def __call__(self, message: str) -> None:
-        print(f"[{time.perf_counter() - self.t0:6.1f} s] {message}", flush=True)
+        return rng
 
 
 def seed_everything(seed: int) -> np.random.Generator:
@@ -432,77 +546,74 @@ def load_demos(cfg: Config, cache_dir=demo_lib.DEFAULT_CACHE_DIR) -> dict:
     return out
 
 
-def eval_seed(cfg: Config) -> int:
-    """Evaluation starts are the same at every iteration (and differ from training data)."""
-    return 1_000_003 + cfg.seed
+class ProgressLog:
+    """Prints one line per phase, prefixed with the seconds since the log was made."""
+
+    def __init__(self):
+        self.t0 = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        print(f"[{time.perf_counter() - self.t0:6.1f} s] {message}", flush=True)
 
 
-def start(cfg: Config, demo_data: dict, log=print) -> RunState:
-    """Lines 1-2, then the iteration-0 evaluation."""
-    rng = seed_everything(cfg.seed)
-    policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
-    t0 = time.perf_counter()
-    if demo_data and cfg.bc_steps:
-        bc = pretrain_bc(policy, demo_data, cfg, rng)
-        log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss {bc:.3f}")
-    data = {}
-    for design in cfg.train:
-        code = sim2d.parse_design(design)
-        data[code] = collect_random_rollouts(code, cfg, rng)
-    log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
-    state = RunState(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
-    state.metrics.append(iteration_metrics(state, 0, float("nan"), time.perf_counter() - t0))
-    return state
+def record(run: Run, row: dict, log) -> None:
+    """Append a metrics row; a non-finite number is logged and stored as None (JSON null)."""
+    bad = [k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
+    if bad:
+        log(f"WARNING iteration {row['iteration']}: non-finite {', '.join(bad)} (stored as null)")
+    run.metrics.append({k: None if k in bad else v for k, v in row.items()})
 
 
-def iteration_metrics(state: RunState, i: int, model_loss: float, seconds: float, extra: dict | None = None) -> dict:
-    """Evaluate every training design in the simulator and make the metrics row of iteration i.
+# ----------------------------------------------------------------------------
+# Algorithm 1
+# ----------------------------------------------------------------------------
+def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, on_iteration=None) -> Run:
+    """Algorithm 1 (MBRL with IL for modular robots), from line 1, or continuing `run`.
 
-    From iteration 1 on (when there is a fitted model) the row also holds `model_bias`'s
-    pair, averaged over training designs: model_progress_m and sim_progress_m.
+    demo_data: T_demo from `load_demos` (empty for plain RL).  After the
+    iteration-0 evaluation and after every iteration, `on_iteration(run)` is
+    called (train.py saves checkpoints and plots there).  Returns the Run.
     """
-    results = {d: evaluate_policy(state.policy, d, state.cfg, eval_seed(state.cfg)) for d in state.data}
-    dist = np.concatenate([r["distance_m"] for r in results.values()])
-    row = {"iteration": i, "distance_m": float(dist.mean()), "distance_min_m": float(dist.min()),
-           "distance_max_m": float(dist.max()), "il_weight": state.il_weight, "model_loss": model_loss,
-           "seconds": seconds}
-    if i > 0:
-        bias = [model_bias(state.policy, state.model, d, r["states"], state.cfg) for d, r in results.items()]
-        row["model_progress_m"], row["sim_progress_m"] = (float(np.mean(v)) for v in zip(*bias))
-    row.update(extra or {})
-    return {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}   # JSON null
+    torch.set_num_threads(cfg.threads)
+    if run is None:
+        t0 = time.perf_counter()
+        rng = seed_everything(cfg.seed)
+        policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
+        if demo_data and cfg.bc_steps:                                                             # line 1
+            log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
+                f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
+        data = {sim2d.parse_design(d): collect_random_rollouts(d, cfg, rng) for d in cfg.train}   # line 2
+        log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
+        run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
+        row = evaluate_iteration(policy, model, data, cfg, 0)
+        record(run, {**row, "il_weight": run.il_weight, "seconds": time.perf_counter() - t0}, log)
+        log(f"iteration 0: {row['distance_m']:.2f} m in {cfg.eval_steps} steps")
+        if on_iteration:
+            on_iteration(run)
 
-
-def iterate(state: RunState, demo_data: dict, log=print) -> dict:
-    """One pass of Algorithm 1's loop body (lines 4-30) and its evaluation."""
-    cfg, rng, i = state.cfg, state.rng, state.iteration + 1
-    t0 = time.perf_counter()
-    if i == 1:
-        batches = [(sim2d.design_graph(d), *traj.transitions()) for d, traj in state.data.items()]
-        state.model.fit_normalization(batches)
-    model_loss = train_model(state.model, state.data, cfg, cfg.model_steps if i == 1 else cfg.finetune_steps, rng)
-    log(f"iter {i}  line 5   model fitted: loss {model_loss:.4f}")
-    opt = optimize_policy(state.policy, state.model, state.data, demo_data, state.il_weight, cfg, rng)
-    log(f"iter {i}  lines 7-26 policy: RL loss {opt['rl_loss']:.3f}, IL loss {opt['il_loss']:.3f}, "
-        f"{opt['reverts']} reverts, lr {opt['lr']:.1e}")
-    for design in state.data:
-        state.data[design] = state.data[design] + collect_policy_rollouts(state.policy, design, cfg, rng)
-    row_extra = {"rl_loss": opt["rl_loss"], "il_loss": opt["il_loss"], "reverts": opt["reverts"], "lr": opt["lr"]}
-    row = iteration_metrics(state, i, model_loss, 0.0, row_extra)
-    state.il_weight = decay_il_weight(state.il_weight, cfg)
-    state.iteration = i
-    row["seconds"] = time.perf_counter() - t0
-    state.metrics.append(row)
-    log(f"iter {i}  evaluation: {row['distance_m']:.2f} m (min {row['distance_min_m']:.2f}, "
-        f"max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; first {cfg.horizon} steps: "
-        f"model {row['model_progress_m']:.2f} m, simulator {row['sim_progress_m']:.2f} m")
-    return row
-
-
-def algorithm1(cfg: Config, log=print, cache_dir=demo_lib.DEFAULT_CACHE_DIR) -> RunState:
-    """Algorithm 1 end to end, in memory (train.py runs the same steps with a checkpoint per iteration)."""
-    demo_data = load_demos(cfg, cache_dir)            # T_demo
-    state = start(cfg, demo_data, log)                # lines 1-2
-    while state.iteration < cfg.iters:                # lines 3-31
-        iterate(state, demo_data, log)
-    return state
+    policy, model, data, rng = run.policy, run.model, run.data, run.rng
+    for i in range(run.iteration + 1, cfg.iters + 1):                                              # line 3
+        t0, il_weight = time.perf_counter(), run.il_weight
+        # -- lines 4-5: model learning phase --
+        model_loss = train_model(model, data, cfg, rng, first=(i == 1))                            # line 5
+        if not math.isfinite(model_loss):
+            log(f"iter {i}  WARNING: model loss is {model_loss}")
+        # -- lines 6-26: policy optimisation phase --
+        phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)               # lines 7-26
+        # -- lines 27-29: data collection --
+        for design in data:
+            data[design] = data[design] + collect_policy_rollouts(policy, design, cfg, rng)        # lines 28-29
+        run.il_weight = decay_il_weight(il_weight, cfg)                                            # line 30
+        run.iteration = i
+        # -- evaluation in the simulator (Sec. IV), not part of Algorithm 1 --
+        row = evaluate_iteration(policy, model, data, cfg, i)
+        record(run, {**row, "il_weight": il_weight, "model_loss": model_loss, **phase,
+                     "seconds": time.perf_counter() - t0}, log)
+        log(f"iter {i}  model loss {model_loss:.4f}; policy: RL loss {phase['rl_loss']:.3f}, "
+            f"{phase['reverts']} reverts, lr {phase['lr']:.1e}; {row['distance_m']:.2f} m "
+            f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "
+            f"first {cfg.horizon} steps: model {row['model_progress_m']:.2f} m, "
+            f"simulator {row['sim_progress_m']:.2f} m")
+        if on_iteration:
+            on_iteration(run)
+    return run

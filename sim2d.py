@@ -547,23 +547,50 @@ class World:
 
 
 # ----------------------------------------------------------------------------
-# Evaluation: the paper's metric (Sec. IV), distance in 200 control steps
+# The one simulation loop: data collection, demonstrations, evaluation (the
+# paper's metric, Sec. IV: distance in 200 control steps) and benchmarks all
+# run robots through `simulate`.
 # ----------------------------------------------------------------------------
-def evaluate(design: str | DesignGraph, act, n: int = 8, steps: int = 200, seed: int = 0) -> dict:
-    """Run `act` on n perturbed starts for `steps` control steps (200 = 16.7 s).
+@dataclass
+class Episodes:
+    """n episodes of one design run side by side, as `simulate` returns them (numpy, float64)."""
 
-    act(obs, state) -> (n, A) actions; obs is the noisy per-module dict the
-    policy sees, state the true (n, S) state (for hand-crafted controllers).
-    Returns {"distance_m": (n,), "flipped": (n,) bool, "states": (steps+1, n, S)}.
+    design: str                   # six-letter port code
+    states: np.ndarray            # (n, T + 1, S) true states s_0 .. s_T
+    obs: dict                     # noisy o_t = O(s_t) per module: body (n, T, 3), leg (n, T, L, 4), wheel (n, T, W, 1)
+    actions: np.ndarray           # (n, T, A) a_t as applied: clipped to [-1, 1]
+    flipped: np.ndarray           # (n,) bool, |pitch| > FLIP_PITCH at any step
+
+    @property
+    def distance_m(self) -> np.ndarray:
+        """(n,) x_T - x_0: Sec. IV's metric when T = 200."""
+        return self.states[:, -1, 0] - self.states[:, 0, 0]
+
+
+def simulate(design: str | DesignGraph, act, n: int = 8, steps: int = 200, seed: int = 0) -> Episodes:
+    """Run act(obs, state, t) -> (n, A) for `steps` control steps from n starts drawn from p(s).
+
+    obs is the noisy per-module dict the policy sees, state the true (n, S)
+    state (hand-crafted controllers may read it), t the control step from 0.
+    The seed fixes the starts and the observation noise.  With steps = 200
+    (16.7 s) this is the paper's evaluation (Sec. IV).
     """
+    if steps < 1:
+        raise ValueError(f"steps must be a positive number of control steps, got {steps}")
     world = World(design, n=n, max_steps=steps, seed=seed)
     obs, info = world.reset(seed=seed)
-    states = [info["state"]]
-    for _ in range(steps):
-        obs, _, terminated, _, info = world.step(act(obs, info["state"]))
+    states, observations, actions = [info["state"]], [], []
+    terminated = np.zeros(n, dtype=bool)
+    for t in range(steps):
+        a = np.clip(act(obs, info["state"], t), -1.0, 1.0)         # (n, A)
+        observations.append(obs)
+        actions.append(a)
+        obs, _, terminated, _, info = world.step(a)
         states.append(info["state"])
-    states = np.stack(states)
-    return {"distance_m": states[-1, :, 0] - states[0, :, 0], "flipped": terminated, "states": states}
+    return Episodes(design=world.graph.code, states=np.stack(states, 1),
+                    obs={k: np.stack([o[k] for o in observations], 1) for k in ("body", "leg", "wheel")},
+                    actions=np.stack(actions, 1),
+                    flipped=terminated.copy())
 
 
 # ----------------------------------------------------------------------------
@@ -739,10 +766,9 @@ def main(argv=None) -> int:
     actions = (random_spline_actions(rng, 1, graph.action_dim, args.steps) if args.action == "random"
                else np.zeros((1, args.steps, graph.action_dim)))
     t0 = time.perf_counter()
-    counter = iter(range(args.steps))
-    result = evaluate(graph, lambda obs, s: actions[:, next(counter)], n=1, steps=args.steps, seed=args.seed)
+    result = simulate(graph, lambda obs, s, t: actions[:, t], n=1, steps=args.steps, seed=args.seed)
     seconds = time.perf_counter() - t0
-    s = result["states"][:, 0]
+    s = result.states[0]
     print(f"design {graph.name} ({graph.code}): {graph.n_legs} legs, {graph.n_wheels} wheels, "
           f"{graph.action_dim} joints, state {graph.state_dim}")
     print(f"{args.steps} steps ({args.steps * CONTROL_DT:.1f} s simulated) in {seconds:.2f} s wall; "
@@ -753,8 +779,8 @@ def main(argv=None) -> int:
     if args.png:
         save_png(graph, s, args.png)
         print(f"wrote {args.png}")
-    print(f"action={args.action} seed={args.seed} distance_m={result['distance_m'][0]:.4f} "
-          f"flipped={int(result['flipped'][0])}")
+    print(f"action={args.action} seed={args.seed} distance_m={result.distance_m[0]:.4f} "
+          f"flipped={int(result.flipped[0])}")
     return 0
 
 

@@ -6,6 +6,7 @@ Demonstrations", Algorithm 1 (run by modular_rlil_minimal.py) and Sec. IV
 
     python train.py --train leg_none_wheel --demos hexapod car     # RL+IL
     python train.py --train leg_none_wheel                         # plain RL baseline
+    python train.py --train car --preset tiny                      # 30-second class demo
     python train.py --eval runs/leg_none_wheel-hexapod_car-seed0 --design hexapod --gif h.gif
 
 A run directory holds metrics.json, metrics.csv, curve.png, policy.pt (config
@@ -16,8 +17,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import inspect
 import json
 import os
+import re
+import shutil
 import sys
 import tempfile
 import time
@@ -31,7 +35,6 @@ import sim2d
 from gnn import GNNConfig, ModularModel, ModularPolicy
 
 OUTPUTS = ("metrics.json", "metrics.csv", "curve.png", "policy.pt", "checkpoint.pt", "rollout.gif")
-THREADS = 2   # torch threads: the 2-core machine the budget is measured on
 
 
 class UsageError(Exception):
@@ -60,12 +63,20 @@ def atomic_write(path: Path, write) -> None:
             os.remove(tmp)
 
 
+def versions() -> dict:
+    """The library versions a run's numbers depend on (with Config.threads)."""
+    import pymunk
+    return {"torch": torch.__version__, "numpy": np.__version__, "pymunk": pymunk.version,
+            "python": sys.version.split()[0]}
+
+
 def config_to_dict(cfg: rlil.Config) -> dict:
-    return dataclasses.asdict(cfg)
+    """The Config as JSON-able dict, with the library versions under "versions"."""
+    return {**dataclasses.asdict(cfg), "versions": versions()}
 
 
 def config_from_dict(d: dict) -> rlil.Config:
-    d = dict(d)
+    d = {k: v for k, v in d.items() if k != "versions"}
     d["gnn"] = GNNConfig(**d["gnn"])
     d["train"], d["demos"] = tuple(d["train"]), tuple(d["demos"])
     return rlil.Config(**d)
@@ -109,16 +120,16 @@ def save_curve(out: Path, cfg: rlil.Config, metrics: list[dict]) -> None:
     plt.close(fig)
 
 
-def save_checkpoint(out: Path, state: rlil.RunState) -> None:
+def save_checkpoint(out: Path, run: rlil.Run) -> None:
     """policy.pt (policy + config, for --eval) and checkpoint.pt (everything, for --resume)."""
-    cfg = config_to_dict(state.cfg)
+    cfg = config_to_dict(run.cfg)
     atomic_write(out / "policy.pt", lambda p: torch.save(
-        {"config": cfg, "policy": state.policy.state_dict(), "iteration": state.iteration}, p))
+        {"config": cfg, "policy": run.policy.state_dict(), "iteration": run.iteration}, p))
     atomic_write(out / "checkpoint.pt", lambda p: torch.save({
-        "config": cfg, "policy": state.policy.state_dict(), "model": state.model.state_dict(),
-        "data": {d: {"states": t.states, "actions": t.actions} for d, t in state.data.items()},
-        "il_weight": state.il_weight, "iteration": state.iteration,
-        "metrics": state.metrics, "rng": state.rng_state()}, p))
+        "config": cfg, "policy": run.policy.state_dict(), "model": run.model.state_dict(),
+        "data": {d: {"states": t.states, "actions": t.actions} for d, t in run.data.items()},
+        "il_weight": run.il_weight, "iteration": run.iteration,
+        "metrics": run.metrics, "rng": run.rng_state()}, p))
 
 
 def load_checkpoint(path: Path) -> dict:
@@ -130,23 +141,21 @@ def load_checkpoint(path: Path) -> dict:
         raise UsageError(f"cannot read checkpoint {path} ({type(e).__name__}): the file is corrupt or not from train.py")
 
 
-def restore_state(ckpt: dict, cfg: rlil.Config) -> rlil.RunState:
+def restore_run(ckpt: dict, cfg: rlil.Config) -> rlil.Run:
     policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
-    state = rlil.RunState(cfg, policy, model, data, ckpt["il_weight"], ckpt["iteration"],
-                          ckpt["metrics"])
-    state.set_rng_state(ckpt["rng"])
-    return state
+    return rlil.Run(cfg, policy, model, data, ckpt["il_weight"], rlil.Run.rng_from_state(ckpt["rng"]),
+                    ckpt["iteration"], ckpt["metrics"])
 
 
-def save_rollouts(out: Path, state: rlil.RunState) -> None:
+def save_rollouts(out: Path, run: rlil.Run) -> None:
     """rollout.gif: the final policy on each training design (one file per extra design)."""
-    for k, design in enumerate(state.data):
-        result = rlil.evaluate_policy(state.policy, design, state.cfg, rlil.eval_seed(state.cfg))
+    for k, design in enumerate(run.data):
+        result = rlil.evaluate_policy(run.policy, design, run.cfg, rlil.eval_seed(run.cfg))
         name = "rollout.gif" if k == 0 else f"rollout_{sim2d.design_name(design)}.gif"
-        atomic_write(out / name, lambda p: sim2d.save_gif(design, result["states"][:, 0], p, every=2))
+        atomic_write(out / name, lambda p: sim2d.save_gif(design, result.states[0], p, every=2))
 
 
 # ----------------------------------------------------------------------------
@@ -167,44 +176,56 @@ def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
 
 def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False, log=None,
           cache_dir=rlil.demo_lib.DEFAULT_CACHE_DIR) -> list[dict]:
-    """Run (or continue) Algorithm 1 with every output written after each iteration."""
+    """Run (or continue) Algorithm 1 with every output written after each iteration.
+
+    Everything is checked before anything is written: a bad config or design is
+    a UsageError, and a run that fails before its first checkpoint leaves no
+    directory behind (one that existed before is left as it was).
+    """
     log = log or rlil.ProgressLog()
-    cfg = dataclasses.replace(cfg, train=tuple(sim2d.parse_design(d) for d in cfg.train),
-                              demos=tuple(sim2d.parse_design(d) for d in cfg.demos))
+    try:
+        cfg = rlil.validate_config(cfg)
+    except ValueError as e:
+        raise UsageError(str(e))
     resuming = resume and (out / "checkpoint.pt").exists()
-    prepare_run_dir(out, resume, force and not resuming)
-    demo_data = rlil.load_demos(cfg, cache_dir)
-    if demo_data:
-        log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
-                                   for d, v in demo_data.items()))
+    run = None
     if resuming:
         ckpt = load_checkpoint(out / "checkpoint.pt")
         saved = config_from_dict(ckpt["config"])
         if dataclasses.replace(saved, iters=cfg.iters) != cfg:
             raise UsageError(f"--resume with a different configuration than {out}'s: "
                              "only --iters may change (start a new --out for other settings)")
-        state = restore_state(ckpt, cfg)
-        log(f"resuming {out} after iteration {state.iteration}")
-    else:
-        state = rlil.start(cfg, demo_data, log)
-        save_checkpoint(out, state)
-        save_metrics(out, cfg, state.metrics)
-    log(f"iteration 0: {state.metrics[0]['distance_m']:.2f} m in {cfg.eval_steps} steps")
-    durations = []
-    while state.iteration < cfg.iters:
-        t0 = time.perf_counter()
-        rlil.iterate(state, demo_data, log)
-        save_checkpoint(out, state)
-        save_metrics(out, cfg, state.metrics)
-        save_curve(out, cfg, state.metrics)
-        durations.append(time.perf_counter() - t0)
-        left = (cfg.iters - state.iteration) * np.mean(durations)
-        log(f"iteration {state.iteration}/{cfg.iters} done; about {left:.0f} s left")
-    save_curve(out, cfg, state.metrics)
-    save_rollouts(out, state)
-    dist = " ".join(f"{m['distance_m']:.2f}" for m in state.metrics)
+        run = restore_run(ckpt, cfg)
+        log(f"resuming {out} after iteration {run.iteration}")
+    created = not out.exists()
+    prepare_run_dir(out, resume, force and not resuming)
+    durations, t_last = [], time.perf_counter()
+
+    def on_iteration(run: rlil.Run) -> None:          # after iteration 0 and every later one
+        nonlocal t_last
+        save_checkpoint(out, run)
+        save_metrics(out, run.cfg, run.metrics)
+        save_curve(out, run.cfg, run.metrics)
+        if run.iteration > 0:
+            durations.append(time.perf_counter() - t_last)
+            log(f"iteration {run.iteration}/{cfg.iters} done; about "
+                f"{(cfg.iters - run.iteration) * np.mean(durations):.0f} s left")
+        t_last = time.perf_counter()
+
+    try:
+        demo_data = rlil.load_demos(cfg, cache_dir)
+        if demo_data:
+            log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
+                                       for d, v in demo_data.items()))
+        run = rlil.algorithm1(cfg, demo_data, run=run, log=log, on_iteration=on_iteration)
+    except BaseException:
+        if created and not (out / "checkpoint.pt").exists():
+            shutil.rmtree(out, ignore_errors=True)          # nothing half-made is left behind
+        raise
+    save_rollouts(out, run)
+    dist = " ".join(f"{m['distance_m']:.2f}" for m in run.metrics)
     log(f"done: distance per iteration (m) {dist}; outputs in {out}")
-    return state.metrics
+    return run.metrics
 
 
 def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
@@ -216,11 +237,11 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
     policy.load_state_dict(ckpt["policy"])
     graph = sim2d.design_graph(design)
     result = rlil.evaluate_policy(policy, graph.code, cfg, rlil.eval_seed(cfg))
-    d = result["distance_m"]
+    d = result.distance_m
     print(f"policy {run_dir} (iteration {ckpt['iteration']}) on {graph.name} ({graph.code}): "
-          f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result['flipped'].sum())}")
+          f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result.flipped.sum())}")
     if gif:
-        sim2d.save_gif(graph, result["states"][:, 0], gif, every=2)
+        sim2d.save_gif(graph, result.states[0], gif, every=2)
         print(f"wrote {gif}")
     print(f"design={graph.code} distance_m={d.mean():.4f}")
     return float(d.mean())
@@ -237,34 +258,40 @@ PANELS = {   # panel: (trained design, demo designs), the paper's Fig. 3 (a)-(d)
 }
 
 
-def figure3_runs(out: Path, seeds: int, iters: int) -> list[dict]:
-    """One entry per run of the sweep: its panel, method, seed, directory and train.py arguments."""
+def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int) -> list[dict]:
+    """One entry per run of the sweep: its panel, method, seed, directory and train.py arguments.
+
+    Every run has `base`'s budget; design, demos and seed are the panel's, and a
+    run gets one torch thread when several run at once.
+    """
     runs = []
     for panel, (design, demos) in PANELS.items():
         for method, demo_list in (("RL+IL", demos), ("RL", ())):
             for seed in range(seeds):
-                cfg = rlil.Config(train=(sim2d.parse_design(design),),
-                                  demos=tuple(sim2d.parse_design(d) for d in demo_list), seed=seed, iters=iters)
-                args = ["--train", design, "--seed", str(seed), "--iters", str(iters)]
-                args += ["--demos", *demo_list] if demo_list else []
+                cfg = dataclasses.replace(base, train=(sim2d.parse_design(design),), seed=seed,
+                                          demos=tuple(sim2d.parse_design(d) for d in demo_list),
+                                          threads=1 if jobs > 1 else base.threads)
                 runs.append({"panel": panel, "train": design, "demos": "+".join(demos), "method": method,
-                             "seed": seed, "dir": out / run_name(cfg), "args": args})
+                             "seed": seed, "dir": out / run_name(cfg), "args": config_args(cfg)})
     return runs
 
 
 def finished_iterations(run_dir: Path) -> int:
+    """Iterations after iteration 0 in a run's metrics.json; -1 when it has none."""
     try:
         return len(json.loads((run_dir / "metrics.json").read_text())["iterations"]) - 1
     except (OSError, ValueError, KeyError):
         return -1
 
 
-def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = (), log=None) -> None:
+def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None) -> list[str]:
     """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
 
     Each run is a normal run directory under `out`, so a sweep resumes (finished
     runs are reused, interrupted ones continue) and its runs can be spread over
     machines by any scheduler and merged into one `out` before plotting.
+    Returns the runs that failed or did not finish all `base.iters` iterations,
+    one line each; they are named in the summary and on the plot too.
     """
     import subprocess
     from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -272,14 +299,12 @@ def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = ()
     log = log or rlil.ProgressLog()
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    runs = figure3_runs(out, seeds, iters)
-    todo = [r for r in runs if finished_iterations(r["dir"]) < iters]
+    runs = figure3_runs(out, base, seeds, jobs)
+    todo = [r for r in runs if finished_iterations(r["dir"]) < base.iters]
     log(f"figure 3: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
-    threads = 1 if jobs > 1 else THREADS
 
     def launch(run):
-        cmd = [sys.executable, str(Path(__file__).resolve()), *run["args"], *budget, "--out", str(run["dir"]),
-               "--threads", str(threads)]
+        cmd = [sys.executable, str(Path(__file__).resolve()), *run["args"], "--out", str(run["dir"])]
         if (run["dir"] / "checkpoint.pt").exists():
             cmd.append("--resume")
         run["dir"].mkdir(parents=True, exist_ok=True)
@@ -290,16 +315,26 @@ def figure3(out: Path, seeds: int, iters: int, jobs: int, budget: list[str] = ()
         futures = {pool.submit(launch, r): r for r in todo}
         for done, future in enumerate(as_completed(futures), 1):
             r = futures[future]
-            status = "ok" if future.result() == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
+            r["returncode"] = future.result()
+            status = "ok" if r["returncode"] == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
             elapsed = time.perf_counter() - t0
             log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
                 f"{elapsed / done * (len(todo) - done):.0f} s left")
+    problems = []
+    for r in runs:
+        n = finished_iterations(r["dir"])
+        if n < base.iters or r.get("returncode", 0) != 0:
+            why = f"exit status {r['returncode']}, " if r.get("returncode", 0) != 0 else ""
+            problems.append(f"({r['panel']}) {r['method']} seed {r['seed']}: {why}{max(n, 0)} of {base.iters} "
+                            f"iterations ({r['dir']})")
     rows = figure3_rows(runs)
-    write_figure3(out, rows, iters)
-    summary = summarize_figure3(rows)
+    write_figure3(out, rows, base.iters, problems)
+    summary = summarize_figure3(rows, base.iters, seeds, problems)
     atomic_write(out / "figure3.md", lambda p: Path(p).write_text(summary))
     print(summary)
-    log(f"wrote {out / 'figure3.png'}, {out / 'figure3.csv'} and {out / 'figure3.md'}")
+    log(f"wrote {out / 'figure3.png'}, {out / 'figure3.csv'} and {out / 'figure3.md'}"
+        + (f"; {len(problems)} runs missing or failed" if problems else ""))
+    return problems
 
 
 def figure3_rows(runs: list[dict]) -> list[dict]:
@@ -320,38 +355,43 @@ def converged_at(curve: dict, threshold: float):
     return next((i for i in sorted(curve) if curve[i] >= threshold), None)
 
 
-def summarize_figure3(rows: list[dict]) -> str:
+def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = ()) -> str:
     """Markdown table per panel and method: iterations to converge, final distance, spread.
 
     Converged = the first iteration whose mean over seeds reaches 90 % of the
-    best final mean of either method in that panel (per seed: of that seed's curve).
+    best mean at iteration `iters` of either method in that panel (per seed: of
+    that seed's curve).  Means are over the seeds that reached an iteration;
+    the "seeds" column says how many reached the last one.
     """
-    lines = ["| panel | method | converged at (mean curve) | per seed | final mean (m) | final min-max (m) |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) |",
+             "|---|---|---|---|---|---|---|"]
     for panel, (design, demos) in PANELS.items():
         runs = {}                                           # method -> seed -> iteration -> distance
         for r in rows:
             if r["panel"] == panel:
                 runs.setdefault(r["method"], {}).setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
-        if not runs:
-            continue
-        last = min(max(c) for seeds in runs.values() for c in seeds.values())
-        mean = {m: {i: np.mean([c[i] for c in seeds.values() if i in c]) for i in range(last + 1)}
-                for m, seeds in runs.items()}
-        threshold = 0.9 * max(curve[last] for curve in mean.values())
+        mean = {m: {i: np.mean([c[i] for c in curves.values() if i in c])
+                    for i in range(iters + 1) if any(i in c for c in curves.values())}
+                for m, curves in runs.items()}
+        finals = [curve[iters] for curve in mean.values() if iters in curve]
+        threshold = 0.9 * max(finals) if finals else float("inf")
+        fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
         for method in ("RL+IL", "RL"):
-            if method not in runs:
+            curves = runs.get(method, {})
+            final = [c[iters] for c in curves.values() if iters in c]
+            head = f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} | {len(final)} of {seeds} |"
+            if not final:
+                lines.append(head + " no run finished | | | |")
                 continue
-            finals = [c[last] for c in runs[method].values()]
-            per_seed = [converged_at(c, threshold) for c in runs[method].values()]
-            fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
-            lines.append(f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} | "
-                         f"{fmt(converged_at(mean[method], threshold))} | {', '.join(map(fmt, per_seed))} | "
-                         f"{np.mean(finals):.2f} | {min(finals):.2f} - {max(finals):.2f} |")
+            per_seed = [converged_at(c, threshold) for c in curves.values()]
+            lines.append(f"{head} {fmt(converged_at(mean[method], threshold))} | {', '.join(map(fmt, per_seed))} | "
+                         f"{np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} |")
+    if problems:
+        lines += ["", "Missing or failed runs (left out of the means above):"] + [f"- {p}" for p in problems]
     return "\n".join(lines) + "\n"
 
 
-def write_figure3(out: Path, rows: list[dict], iters: int) -> None:
+def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = ()) -> None:
     """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
     import matplotlib
     matplotlib.use("Agg")
@@ -363,7 +403,7 @@ def write_figure3(out: Path, rows: list[dict], iters: int) -> None:
             w.writeheader()
             w.writerows(rows)
     atomic_write(out / "figure3.csv", write_csv)
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8), dpi=100, sharey=True)
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8 + 0.18 * len(problems)), dpi=100, sharey=True)
     for ax, (panel, (design, demos)) in zip(axes, PANELS.items()):
         for method, colour in (("RL+IL", "tab:blue"), ("RL", "tab:red")):
             table = {}
@@ -373,8 +413,9 @@ def write_figure3(out: Path, rows: list[dict], iters: int) -> None:
             if not table:
                 continue
             it = sorted(table)
-            ax.plot(it, [np.mean(table[i]) for i in it], "o-", color=colour,
-                    label=f"{method} ({len(table[it[0]])} seeds)")
+            counts = sorted({len(table[i]) for i in it})
+            seeds = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
+            ax.plot(it, [np.mean(table[i]) for i in it], "o-", color=colour, label=f"{method} ({seeds} seeds)")
             ax.fill_between(it, [min(table[i]) for i in it], [max(table[i]) for i in it], color=colour, alpha=0.2)
         ax.set_title(f"({panel}) {design}, demos: {' + '.join(demos)}", fontsize=10)
         ax.set_xlabel("iteration")
@@ -382,85 +423,97 @@ def write_figure3(out: Path, rows: list[dict], iters: int) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
     axes[0].set_ylabel("distance in 200 steps (m)")
-    fig.tight_layout()
+    if problems:
+        fig.text(0.01, 0.01, "missing or failed: " + "; ".join(p.split(" (")[0] for p in problems),
+                 fontsize=8, color="tab:red", wrap=True)
+    fig.tight_layout(rect=(0, 0.04 * bool(problems), 1, 1))
     atomic_write(out / "figure3.png", lambda p: fig.savefig(p, format="png"))
     plt.close(fig)
 
 
-BUDGET = {   # Config fields exposed on the command line
-    "policy_steps": "K, policy gradient steps per iteration",
-    "horizon": "T, model roll-out steps",
-    "batch": "N_batch, initial states per policy step",
-    "random_episodes": "random-action episodes of 100 steps per training design",
-    "policy_episodes": "policy episodes per iteration (x2: without and with noise)",
-    "model_steps": "model Adam steps at iteration 1",
-    "finetune_steps": "model Adam steps at later iterations",
-    "bc_steps": "behavioural-cloning steps (with --demos)",
-    "demo_episodes": "demonstration episodes per demo design",
-    "eval_episodes": "perturbed starts per evaluation",
-    "il_weight": "lambda at iteration 1 (with --demos)",
-}
+# ----------------------------------------------------------------------------
+# Command line: every Config field is a flag, its comment the help text
+# ----------------------------------------------------------------------------
+def field_help(cls) -> dict[str, str]:
+    """{field: the comment after it in `cls`'s source}, comment-only lines aligned under it included."""
+    helps, last, column = {}, None, None
+    for line in inspect.getsource(cls).splitlines():
+        m = re.match(r"\s+(\w+): [^#]+#\s?(.*)", line)
+        if m:
+            helps[m[1]], last, column = m[2].strip(), m[1], line.index("#")
+        elif last and line.strip().startswith("#") and line.index("#") == column:
+            helps[last] += " " + line.strip("# \n")
+        else:
+            last = None
+    return helps
+
+
+def config_flags() -> list[tuple[str, str, dataclasses.Field]]:
+    """(flag, dest, field) for every Config field; GNNConfig's fields as --gnn-<name>."""
+    flags = [("--" + f.name.replace("_", "-"), f.name, f) for f in dataclasses.fields(rlil.Config) if f.name != "gnn"]
+    flags += [("--gnn-" + f.name.replace("_", "-"), "gnn_" + f.name, f) for f in dataclasses.fields(GNNConfig)]
+    return flags
+
+
+def config_args(cfg: rlil.Config) -> list[str]:
+    """The train.py arguments that rebuild `cfg`: --train, --demos, and every field that differs from the default."""
+    default = rlil.Config()
+    args = ["--train", *cfg.train] + (["--demos", *cfg.demos] if cfg.demos else [])
+    for flag, dest, f in config_flags():
+        value = getattr(cfg.gnn, f.name) if dest.startswith("gnn_") else getattr(cfg, f.name)
+        base = getattr(default.gnn, f.name) if dest.startswith("gnn_") else getattr(default, f.name)
+        if f.name not in ("train", "demos") and value != base:
+            args += [flag, str(value)]
+    return args
 
 
 def build_parser() -> sim2d.CliParser:
     p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) on the planar world.")
-    p.add_argument("--train", nargs="+", metavar="DESIGN", help="design(s) to train (d_train)")
-    p.add_argument("--demos", nargs="*", default=[], metavar="DESIGN", help="demonstration designs (D_demo)")
-    p.add_argument("--iters", type=int, default=5, help="iterations of Algorithm 1 (default 5)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
+                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget, a 30-second class demo)")
     p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>)")
     p.add_argument("--resume", action="store_true", help="continue an existing run after its last iteration")
     p.add_argument("--force", action="store_true", help="start afresh, replacing an existing run's outputs")
     p.add_argument("--eval", metavar="RUN_DIR", help="evaluate a saved policy (with --design)")
     p.add_argument("--design", help="design for --eval (any of the 728, trained on or not)")
     p.add_argument("--gif", help="with --eval: write an animation of the first start")
-    p.add_argument("--threads", type=int, default=THREADS, help=f"torch threads (default {THREADS})")
     p.add_argument("--figure3", action="store_true",
                    help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
     p.add_argument("--seeds", type=int, default=3, help="with --figure3: seeds per condition (default 3)")
     p.add_argument("--jobs", type=int, default=2, help="with --figure3: runs in parallel processes (default 2)")
-    budget = p.add_argument_group("budget (defaults: the 5-minute CPU run)")
-    defaults = rlil.Config()
-    for name, help_ in BUDGET.items():
-        kind = type(getattr(defaults, name))
-        budget.add_argument("--" + name.replace("_", "-"), type=kind, default=getattr(defaults, name),
-                            help=f"{help_} (default {getattr(defaults, name)})")
+    group = p.add_argument_group("Algorithm 1 (modular_rlil_minimal.Config; defaults: the 5-minute CPU run)")
+    default, helps = rlil.Config(), {**field_help(rlil.Config), **field_help(GNNConfig)}
+    for flag, dest, f in config_flags():
+        value = getattr(default.gnn, f.name) if dest.startswith("gnn_") else getattr(default, f.name)
+        kind = dict(nargs="+" if f.name == "train" else "*", metavar="DESIGN") if isinstance(value, tuple) \
+            else dict(type=type(value))
+        group.add_argument(flag, dest=dest, default=None, help=f"{helps[f.name]} (default {value})", **kind)
     return p
 
 
-def budget_from_args(args) -> dict:
-    """The budget flags, checked: counts positive (--bc-steps may be 0), lambda not negative."""
-    budget = {k: getattr(args, k) for k in BUDGET}
-    for k, v in budget.items():
-        if v < (0 if k in ("bc_steps", "il_weight") else 1):
-            raise UsageError(f"--{k.replace('_', '-')} must be {'non-negative' if k in ('bc_steps', 'il_weight') else 'a positive integer'}, got {v}")
-    return budget
-
-
 def config_from_args(args) -> rlil.Config:
+    """The preset, overridden by every flag given; checked (UsageError names the bad field)."""
     try:
-        train = tuple(sim2d.parse_design(d) for d in args.train)
-        demos = tuple(sim2d.parse_design(d) for d in args.demos)
+        cfg = rlil.preset(args.preset)
+        given = {dest: getattr(args, dest) for _, dest, _ in config_flags() if getattr(args, dest) is not None}
+        gnn = dataclasses.replace(cfg.gnn, **{k[4:]: v for k, v in given.items() if k.startswith("gnn_")})
+        cfg = dataclasses.replace(cfg, gnn=gnn, **{k: tuple(v) if isinstance(v, list) else v
+                                                   for k, v in given.items() if not k.startswith("gnn_")})
+        cfg = rlil.validate_config(cfg)
     except ValueError as e:
         raise UsageError(str(e))
-    if args.iters < 1:
-        raise UsageError(f"--iters must be a positive integer, got {args.iters}")
-    return rlil.Config(train=train, demos=demos, seed=args.seed, iters=args.iters, **budget_from_args(args))
+    return cfg
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        if args.threads < 1:
-            raise UsageError(f"--threads must be a positive integer, got {args.threads}")
-        torch.set_num_threads(args.threads)
         if args.figure3:
-            if args.seeds < 1 or args.jobs < 1 or args.iters < 1:
-                raise UsageError("--seeds, --jobs and --iters must be positive integers")
-            budget = [x for k, v in budget_from_args(args).items() for x in ("--" + k.replace("_", "-"), str(v))]
-            figure3(Path(args.out or "runs/figure3"), args.seeds, args.iters, args.jobs, budget)
-            return 0
+            if args.seeds < 1 or args.jobs < 1:
+                raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
+            problems = figure3(Path(args.out or "runs/figure3"), config_from_args(args), args.seeds, args.jobs)
+            return 1 if problems else 0
         if args.eval:
             if not args.design:
                 raise UsageError("--eval needs --design DESIGN")

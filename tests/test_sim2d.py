@@ -48,13 +48,13 @@ def test_cli_summary_line():
 @pytest.mark.parametrize("design", NAMED)
 def test_named_designs_stand_still(design):
     g = sim2d.design_graph(design)
-    result = sim2d.evaluate(g, lambda obs, s: np.zeros((4, g.action_dim)), n=4, steps=200, seed=1)
-    s = result["states"]                                   # (201, 4, S)
+    result = sim2d.simulate(g, lambda obs, s, t: np.zeros((4, g.action_dim)), n=4, steps=200, seed=1)
+    s = result.states                                      # (4, 201, S)
     nominal_y = sim2d.nominal_state(g)[1]
-    assert np.all(np.abs(s[-20:, :, 1] - nominal_y) < 0.02), "height drifted from nominal"
-    assert np.all(np.abs(s[-20:, :, 2]) < 0.05), "not level"
-    assert np.all(np.abs(result["distance_m"]) < 0.1), "crept away"
-    assert not result["flipped"].any()
+    assert np.all(np.abs(s[:, -20:, 1] - nominal_y) < 0.02), "height drifted from nominal"
+    assert np.all(np.abs(s[:, -20:, 2]) < 0.05), "not level"
+    assert np.all(np.abs(result.distance_m) < 0.1), "crept away"
+    assert not result.flipped.any()
 
 
 def test_random_codes_random_and_out_of_range_actions_do_not_blow_up():
@@ -82,11 +82,10 @@ def test_same_seed_same_trajectory_other_seed_other_start():
     def run(seed):
         g = sim2d.design_graph("leg_leg_wheel")
         actions = sim2d.random_spline_actions(np.random.default_rng(seed), 2, g.action_dim, 50)
-        steps = iter(range(50))
-        return sim2d.evaluate(g, lambda obs, s: actions[:, next(steps)], n=2, steps=50, seed=seed)["states"]
+        return sim2d.simulate(g, lambda obs, s, t: actions[:, t], n=2, steps=50, seed=seed).states
     a, b, c = run(3), run(3), run(4)
     assert np.array_equal(a, b)
-    assert not np.allclose(a[0], c[0])
+    assert not np.allclose(a[:, 0], c[:, 0])
 
 
 def test_torch_reward_agrees_with_simulated_progress():
@@ -162,7 +161,43 @@ def test_spline_actions_are_smooth_and_bounded():
 
 def test_rendering_writes_files(tmp_path):
     g = sim2d.design_graph("leg_none_wheel")
-    states = sim2d.evaluate(g, lambda obs, s: np.full((1, g.action_dim), -0.5), n=1, steps=6)["states"][:, 0]
+    states = sim2d.simulate(g, lambda obs, s, t: np.full((1, g.action_dim), -0.5), n=1, steps=6).states[0]
     sim2d.save_gif(g, states, str(tmp_path / "a.gif"))
     sim2d.save_png(g, states, str(tmp_path / "a.png"))
     assert (tmp_path / "a.gif").stat().st_size > 1000 and (tmp_path / "a.png").stat().st_size > 1000
+
+
+def test_simulate_records_what_it_applied_and_passes_the_step():
+    """The one simulation loop: act(obs, state, t) sees t = 0, 1, ...; actions are stored as
+    applied (clipped to [-1, 1]); obs are the noisy per-module observations of the states."""
+    g = sim2d.design_graph("leg_none_wheel")
+    seen = []
+
+    def act(obs, state, t):
+        seen.append(t)
+        assert obs["leg"].shape == (3, 2, 4) and state.shape == (3, g.state_dim)
+        return np.full((3, g.action_dim), 2.0 * (-1) ** t)
+    run = sim2d.simulate(g, act, n=3, steps=5, seed=0)
+    assert seen == [0, 1, 2, 3, 4]
+    assert run.states.shape == (3, 6, g.state_dim) and run.obs["wheel"].shape == (3, 5, 2, 1)
+    assert np.array_equal(run.actions[:, :, 0], np.tile([1.0, -1.0, 1.0, -1.0, 1.0], (3, 1)))
+    noise_free = sim2d.observe(run.states[:, :5], g)
+    assert 0 < np.abs(run.obs["leg"] - noise_free["leg"]).max() < 0.5
+    assert np.array_equal(run.distance_m, run.states[:, -1, 0] - run.states[:, 0, 0])
+
+
+def test_reward_penalties_by_hand():
+    """r = progress - W_PITCH pitch'^2 - W_EFFORT mean(a^2) - W_POSE mean over legs and joints
+    of (q - q_nominal)^2, on a leg_none_wheel state worked out by hand."""
+    g = sim2d.design_graph("leg_none_wheel")              # 2 legs, 2 wheels: S = 16, A = 6
+    s, s_next = np.zeros(16), np.zeros(16)
+    s_next[0], s_next[2] = 0.3, 0.5                       # 0.3 m forward, pitched 0.5 rad
+    s_next[6:8] = sim2d.HIP_NOMINAL + 0.2, sim2d.KNEE_NOMINAL     # leg 1: hip 0.2 rad off
+    s_next[10:12] = sim2d.HIP_NOMINAL, sim2d.KNEE_NOMINAL - 0.4   # leg 2: knee 0.4 rad off
+    a = np.array([1.0, 0.0, 0.0, 0.0, -0.5, 0.5])
+    by_hand = (0.3 - sim2d.W_PITCH * 0.25 - sim2d.W_EFFORT * (1 + 0.25 + 0.25) / 6
+               - sim2d.W_POSE * (0.04 + 0.16) / 4)
+    assert sim2d.reward(s, a, s_next, g) == pytest.approx(by_hand, abs=1e-12)
+    assert sim2d.reward(s, a, s_next, g) < 0.3                   # every penalty lowers it
+    torch_r = sim2d.reward(torch.tensor(s), torch.tensor(a), torch.tensor(s_next), g)
+    assert torch_r.item() == pytest.approx(by_hand, abs=1e-12)
