@@ -53,6 +53,7 @@ class GNNConfig:
     rounds: int = 2             # message-passing rounds per step; 1-4 (1 lets each limb hear all others)
     log_std_min: float = -2.5   # policy log-std lower bound (std 0.08 in normalised action units)
     log_std_max: float = 0.0    # policy log-std upper bound (std 1, half the action range)
+    contact_features: bool = False   # model inputs gain foot height and velocity, wheel height (sim2d.contact_features)
 
 
 TYPES = ("body", "leg", "wheel")
@@ -243,29 +244,37 @@ class ModularModel(nn.Module):
     Node inputs: body [y, pitch, vx, vy, pitch_rate] (x is left out, so the
     prediction is the same wherever the robot is), leg [4 joint states,
     2 actions], wheel [rate, action]; actions are clipped to [-1, 1] as the
-    world clips them.  Node outputs: body [dx, dy, dpitch, dvx, dvy,
+    world clips them.  With `contact_features` a leg also reads its foot's
+    height above the ground and velocity, and a wheel its lowest point's
+    height (sim2d.contact_features, differentiable forward kinematics).  Node outputs: body [dx, dy, dpitch, dvx, dvy,
     dpitch_rate], leg 4 joint changes, wheel 1.  Inputs and outputs are
     normalised per type with statistics from `fit_normalization`.
     """
 
-    IN_DIMS = {"body": BODY_DIM - 1, "leg": LEG_DIM + LEG_ACT_DIM, "wheel": WHEEL_DIM + WHEEL_ACT_DIM}
     OUT_DIMS = {"body": BODY_DIM, "leg": LEG_DIM, "wheel": WHEEL_DIM}
 
     def __init__(self, cfg: GNNConfig = GNNConfig()):
         super().__init__()
         self.cfg = cfg
-        self.nets = nn.ModuleDict({k: type_net(k, self.IN_DIMS[k], self.OUT_DIMS[k], cfg.hidden,
+        extra = {"body": 0, "leg": 3, "wheel": 1} if cfg.contact_features else {"body": 0, "leg": 0, "wheel": 0}
+        self.in_dims = {"body": BODY_DIM - 1 + extra["body"], "leg": LEG_DIM + LEG_ACT_DIM + extra["leg"],
+                        "wheel": WHEEL_DIM + WHEEL_ACT_DIM + extra["wheel"]}
+        self.nets = nn.ModuleDict({k: type_net(k, self.in_dims[k], self.OUT_DIMS[k], cfg.hidden,
                                                recurrent=False) for k in TYPES})
-        self.norm_in = nn.ModuleDict({k: Normalizer(d) for k, d in self.IN_DIMS.items()})
+        self.norm_in = nn.ModuleDict({k: Normalizer(d) for k, d in self.in_dims.items()})
         self.norm_out = nn.ModuleDict({k: Normalizer(d) for k, d in self.OUT_DIMS.items()})
 
-    @staticmethod
-    def inputs(s, a, graph) -> dict:
-        """Raw node inputs: {"body": (n, 1, 5), "leg": (n, L, 6), "wheel": (n, W, 2)}."""
+    def inputs(self, s, a, graph) -> dict:
+        """Raw node inputs: {"body": (n, 1, 5), "leg": (n, L, 6 or 9), "wheel": (n, W, 2 or 3)}."""
         ps, pa = node_state(s, graph), sim2d.split_action(a.clamp(-1.0, 1.0), graph)
-        return {"body": ps["body"][..., 1:],                                                # drop x
-                "leg": torch.cat([ps["leg"], pa["leg"]], -1),
-                "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
+        x = {"body": ps["body"][..., 1:],                                                   # drop x
+             "leg": torch.cat([ps["leg"], pa["leg"]], -1),
+             "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
+        if self.cfg.contact_features:
+            contact = sim2d.contact_features(s, graph)                                      # (n, L, 3), (n, W, 1)
+            x = {**x, "leg": torch.cat([x["leg"], contact["leg"]], -1),
+                 "wheel": torch.cat([x["wheel"], contact["wheel"]], -1)}
+        return x
 
     def delta_normalised(self, s, a, graph) -> dict:
         """The network proper: normalised change of state per type, (n, N_k, out_k)."""
@@ -279,6 +288,12 @@ class ModularModel(nn.Module):
         d = self.delta_normalised(s, a, graph)
         delta = [d[k] * self.norm_out[k].std + self.norm_out[k].mean for k in d]            # (n, N_k, out_k)
         return s + join_nodes(delta)                                                        # (n, S)
+
+    def state_error(self, s_pred, s_true, graph) -> torch.Tensor:
+        """Mean squared error of predicted against true states, each entry divided by the fitted
+        std of its change: for a one-step prediction the same number as `loss`."""
+        err = node_state(s_pred - s_true, graph)
+        return sum((err[k] / self.norm_out[k].std).pow(2).sum() for k in err) / s_true.numel()
 
     def loss(self, s, a, s_next, graph) -> torch.Tensor:
         """Mean squared error of the normalised change of state, averaged over the n x S state entries."""
@@ -297,7 +312,7 @@ class ModularModel(nn.Module):
         for graph, s, a, s_next in batches:
             x, d = self.inputs(s, a, graph), node_state(s_next - s, graph)
             for k in TYPES:
-                xs[k].append(x[k].reshape(-1, self.IN_DIMS[k]))
+                xs[k].append(x[k].reshape(-1, self.in_dims[k]))
                 ds[k].append(d[k].reshape(-1, self.OUT_DIMS[k]))
         for k in TYPES:
             x, d = torch.cat(xs[k]), torch.cat(ds[k])

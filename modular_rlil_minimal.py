@@ -87,6 +87,14 @@ class Config:
     il_batch: int = 32               # demo windows per design per step
     il_window: int = 8               # control steps per demo window (the policy is recurrent)
     entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J)
+    # Robustness to model error (not in the paper: README, "Known deviations"); defaults = the paper
+    ensemble: int = 1                # models trained side by side on T_train (PETS, ME-TRPO); 1 = the paper
+    held_out_models: int = 0         # ensemble members the policy never trains through; the validation
+                                     # reward of Sec. III-J is judged on them (ME-TRPO, Kurutach et al. 2018)
+    model_horizon: int = 1           # steps of the model's training loss: 1 = one-step regression (paper),
+                                     # H = open-loop H-step windows of T_train (multi-step loss)
+    pessimism: float = 0.0           # reward penalty per metre of spread of the training members'
+                                     # predicted progress (MOPO, Yu et al. 2020); needs ensemble - held_out >= 2
     # Evaluation (Sec. IV): distance in 200 control steps
     eval_episodes: int = 8           # perturbed starts per evaluation
     eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
@@ -114,7 +122,8 @@ def preset(name: str = "default", **overrides) -> Config:
 
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
-    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0}
+    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0,
+    "held_out_models": 0, "pessimism": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -130,6 +139,8 @@ def validate_config(cfg: Config) -> Config:
     numeric += [(f.name, getattr(cfg.gnn, f.name)) for f in dataclasses.fields(cfg.gnn)]
     for name, value in numeric:
         low = AT_LEAST.get(name)
+        if isinstance(value, bool):
+            continue
         if name.startswith("log_std"):
             ok, accepted = math.isfinite(value), "a finite number"
         elif low is None:
@@ -140,6 +151,13 @@ def validate_config(cfg: Config) -> Config:
             raise ValueError(f"{name} must be {accepted}, got {value}")
     if cfg.lr_drop > 1 or cfg.il_decay > 1:
         raise ValueError(f"lr_drop and il_decay must be at most 1, got {cfg.lr_drop} and {cfg.il_decay}")
+    if cfg.held_out_models >= cfg.ensemble:
+        raise ValueError(f"held_out_models ({cfg.held_out_models}) must be below ensemble ({cfg.ensemble}): "
+                         "the policy needs a model to train through")
+    if cfg.pessimism > 0 and cfg.ensemble - cfg.held_out_models < 2:
+        raise ValueError("pessimism needs at least 2 ensemble members that are not held out")
+    if cfg.model_horizon > min(cfg.episode_steps, cfg.model_batch):
+        raise ValueError(f"model_horizon ({cfg.model_horizon}) must not exceed episode_steps or model_batch")
     if cfg.il_window > cfg.demo_steps:
         raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
     if cfg.gnn.log_std_min >= cfg.gnn.log_std_max:
@@ -217,41 +235,96 @@ def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
 
 
 # ----------------------------------------------------------------------------
-# Line 5: the model
+# Line 5: the model (an ensemble of one in the paper)
 # ----------------------------------------------------------------------------
-def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
+class Ensemble(torch.nn.Module):
+    """f~_phi as `ensemble` modular models trained side by side on T_train.
+
+    With one member this is the paper's model.  Calling the ensemble is the
+    model the policy trains through: a random one of the first
+    `ensemble - held_out_models` members at every step (PETS, MBPO), so no single
+    member's error can be exploited for a whole roll-out.  The last
+    `held_out_models` members are never trained through; `validation_models`
+    returns them (ME-TRPO), or the training members when none is held out.
+    """
+
+    def __init__(self, cfg: Config):
+        super().__init__()
+        self.members = torch.nn.ModuleList(ModularModel(cfg.gnn) for _ in range(cfg.ensemble))
+        self.n_train = cfg.ensemble - cfg.held_out_models
+
+    def pick(self) -> ModularModel:
+        return self.members[0] if self.n_train == 1 else self.members[int(torch.randint(self.n_train, ()))]
+
+    def forward(self, s, a, graph):                       # s~' = f~(s~, a): (B, S)
+        return self.pick()(s, a, graph)
+
+    def step_with_spread(self, s, a, graph):
+        """A random training member's prediction (B, S), and the std over the training members of
+        the predicted progress (B,) (m): how much the members disagree about this step."""
+        preds = torch.stack([m(s, a, graph) for m in self.members[:self.n_train]])      # (E, B, S)
+        return preds[int(torch.randint(self.n_train, ()))], preds[..., 0].std(0)
+
+    def validation_models(self) -> list:
+        return list(self.members[self.n_train:]) or list(self.members[:self.n_train])
+
+
+def model_loss(model: ModularModel, traj: Trajectories, transitions, n: int, horizon: int, rng) -> torch.Tensor:
+    """The model's training loss on one design: one-step regression of the state change on n
+    random transitions (horizon 1, Sec. III-C), or the error of open-loop predictions along
+    n // horizon random windows of `horizon` steps, each step fed the model's own previous
+    prediction and the recorded action (a multi-step loss; equal to the one-step loss at 1).
+    transitions: traj.transitions(), made once per phase."""
+    graph = sim2d.design_graph(traj.design)
+    if horizon == 1:
+        s, a, s_next = transitions
+        i = torch.from_numpy(rng.integers(len(s), size=n))
+        return model.loss(s[i], a[i], s_next[i], graph)
+    episodes, steps = traj.actions.shape[:2]
+    e = torch.from_numpy(rng.integers(episodes, size=n // horizon))
+    t0 = torch.from_numpy(rng.integers(steps - horizon + 1, size=n // horizon))
+    s, loss = traj.states[e, t0], 0.0                                                   # (n / H, S)
+    for h in range(horizon):
+        s = model(s, traj.actions[e, t0 + h], graph)                                    # open loop
+        loss = loss + model.state_error(s, traj.states[e, t0 + h + 1], graph)
+    return loss / horizon
+
+
+def train_model(models: Ensemble, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
                 first: bool) -> float:
     """Algorithm 1 line 5 (Sec. III-C): supervised regression of the state change on T_train.
 
     At the first iteration the input and output normalisation is fitted to
-    T_train and the model takes `model_steps` Adam steps; later iterations
-    fine-tune it for `finetune_steps`.  Each step sums the loss of a
-    mini-batch from every training design.  Returns the mean loss
-    (normalised MSE) over the last 10 % of the steps (NaN if no steps).
+    T_train and the models take `model_steps` Adam steps; later iterations
+    fine-tune them for `finetune_steps`.  Each step sums, over ensemble members
+    and training designs, the loss of a mini-batch of its own.  Returns the
+    mean loss per member (normalised MSE) over the last 10 % of the steps
+    (NaN if no steps).
     """
-    flat = {d: traj.transitions() for d, traj in data.items()}
+    flat = {d: traj.transitions() for d, traj in data.items()}             # (E*T, S), (E*T, A), (E*T, S)
     if first:
-        model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
+        for model in models.members:
+            model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
     steps = cfg.model_steps if first else cfg.finetune_steps
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.model_lr)
+    opt = torch.optim.Adam(models.parameters(), lr=cfg.model_lr)
     losses = []
     for _ in range(steps):
         loss = 0.0
-        for design, (s, a, s_next) in flat.items():
-            i = torch.from_numpy(rng.integers(len(s), size=cfg.model_batch))
-            loss = loss + model.loss(s[i], a[i], s_next[i], sim2d.design_graph(design))
+        for model in models.members:
+            for design, traj in data.items():
+                loss = loss + model_loss(model, traj, flat[design], cfg.model_batch, cfg.model_horizon, rng)
         opt.zero_grad()
         loss.backward()
         opt.step()
-        losses.append(loss.item())
+        losses.append(loss.item() / len(models.members))
     return float(np.mean(losses[-max(1, steps // 10):])) if losses else float("nan")
 
 
 # ----------------------------------------------------------------------------
 # The losses: eqn. (RL_loss), eqn. (IL_loss) with the entropy penalty, eqn. (RLIL_loss)
 # ----------------------------------------------------------------------------
-def rollout(policy: ModularPolicy, model: ModularModel, s0, h0, graph, horizon: int,
-            deterministic: bool = False):
+def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int,
+            deterministic: bool = False, pessimism: float = 0.0):
     """Algorithm 1 lines 10-15: a ~ pi(a | O(s~)), s~' = f~(s~, a), R += r(s~, a, s~').
 
     s0: (B, S) initial states, h0: (B, nodes, H) policy hidden states.  Returns
@@ -259,25 +332,31 @@ def rollout(policy: ModularPolicy, model: ModularModel, s0, h0, graph, horizon: 
     reparameterised samples, so dR/dtheta flows through every model step.
     The model clips actions to [-1, 1] like the simulator; the reward's effort
     term sees them unclipped, which keeps a gradient that pulls saturated
-    commands back into range.
+    commands back into range.  With `pessimism` > 0 (an Ensemble), each step's
+    reward loses pessimism x the members' spread of predicted progress (MOPO).
     """
     s, h, total = s0, h0, torch.zeros(len(s0))
     for _ in range(horizon):
         noise = None if deterministic else sim2d.obs_noise_like(s, graph)
         a, h = policy.act(sim2d.observe(s, graph, noise), graph, h, deterministic=deterministic)
-        s_next = model(s, a, graph)                                     # (B, S)
-        total = total + sim2d.reward(s, a, s_next, graph)               # (B,)
+        if pessimism:
+            s_next, spread = model.step_with_spread(s, a, graph)                # (B, S), (B,)
+            total = total + sim2d.reward(s, a, s_next, graph) - pessimism * spread
+        else:
+            s_next = model(s, a, graph)                                         # (B, S)
+            total = total + sim2d.reward(s, a, s_next, graph)                   # (B,)
         s = s_next
     return total, s, h
 
 
-def rl_loss(policy: ModularPolicy, model: ModularModel, buffers: dict, cfg: Config, rng) -> torch.Tensor:
+def rl_loss(policy: ModularPolicy, model: Ensemble, buffers: dict, cfg: Config, rng) -> torch.Tensor:
     """Algorithm 1 lines 9-16, eqn. (RL_loss): L_RL = -R, the batch mean of the T-step model
     return from initial states and hidden states sampled from B, summed over d_train."""
     loss = 0.0
     for design, buffer in buffers.items():
         s0, h0 = buffer.sample(cfg.batch, rng)                                          # line 9
-        R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon)  # lines 10-15
+        R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon,    # lines 10-15
+                          pessimism=cfg.pessimism)
         loss = loss - R.mean()                                                          # line 16
     return loss
 
@@ -361,15 +440,17 @@ def refresh_buffer(buffer: Buffer, policy, model, data: Trajectories, cfg: Confi
 
 
 @torch.no_grad()
-def validation_reward(policy, model, val_states: dict, cfg: Config) -> float:
-    """Sec. III-J: net reward of T deterministic model steps from a fixed, large set of states."""
+def validation_reward(policy, models: Ensemble, val_states: dict, cfg: Config) -> float:
+    """Sec. III-J: net reward of T deterministic model steps from a fixed, large set of states,
+    summed over designs; with an ensemble, the mean over `models.validation_models()`."""
     total = 0.0
-    for design, s0 in val_states.items():
-        graph = sim2d.design_graph(design)
-        R, _, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon,
-                          deterministic=True)
-        total += R.mean().item()
-    return total
+    for model in models.validation_models():
+        for design, s0 in val_states.items():
+            graph = sim2d.design_graph(design)
+            R, _, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon,
+                              deterministic=True)
+            total += R.mean().item()
+    return total / len(models.validation_models())
 
 
 class AdaptiveLearningRate:
@@ -418,7 +499,7 @@ def gradient_step(opt, loss, policy, grad_clip: float) -> bool:
     return True
 
 
-def optimize_policy(policy: ModularPolicy, model: ModularModel, data: dict[str, Trajectories],
+def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Trajectories],
                     demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator) -> dict:
     """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen.
 
@@ -469,20 +550,33 @@ def evaluate_policy(policy: ModularPolicy, design: str, cfg: Config, seed: int) 
 
 
 @torch.no_grad()
-def model_bias(policy: ModularPolicy, model: ModularModel, design: str, sim_states: np.ndarray,
-               cfg: Config) -> tuple[float, float]:
-    """How far the model flatters the policy: progress (m) in the first T steps from the
-    evaluation starts, predicted by rolling the policy out in the model, and measured in the
-    simulator (sim_states (n, steps+1, S) from `evaluate_policy`).  Means over starts.
+def model_bias(policy: ModularPolicy, models: Ensemble, design: str, run: sim2d.Episodes,
+               cfg: Config) -> dict:
+    """How far the model flatters the policy, from the evaluation starts, over the first T steps:
 
-    The two differ by the model's bias along the policy's own path (Sec. III-H): well
-    above the simulator's figure, the policy is exploiting model errors; well below,
-    the model undervalues what the policy does, and the RL term pulls away from it.
+    model_progress_m: progress (m) predicted by rolling the policy out in the model
+      (deterministic; with an ensemble, the mean over its members);
+    sim_progress_m: progress measured in the simulator over the same steps;
+    model_path_error_m: |x~_T - x_T| when the model replays the simulator's own
+      actions open-loop: the model's error along the policy's simulated path.
+    Means over starts.  model_progress well above sim_progress is the policy
+    exploiting model errors (Sec. III-H); well below, the model undervalues what
+    the policy does, and the RL term pulls away from it.
     """
     graph, T = sim2d.design_graph(design), cfg.horizon
-    s0 = torch.as_tensor(sim_states[:, 0], dtype=torch.float32)                    # (n, S)
-    _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
-    return float((s_T[:, 0] - s0[:, 0]).mean()), float((sim_states[:, T, 0] - sim_states[:, 0, 0]).mean())
+    states = torch.as_tensor(run.states, dtype=torch.float32)                     # (n, steps + 1, S)
+    actions = torch.as_tensor(run.actions, dtype=torch.float32)                   # (n, steps, A)
+    s0, predicted, replayed = states[:, 0], [], []
+    for model in models.members:
+        _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
+        predicted.append((s_T[:, 0] - s0[:, 0]).mean())
+        s = s0
+        for t in range(T):
+            s = model(s, actions[:, t], graph)
+        replayed.append((s[:, 0] - states[:, T, 0]).abs().mean())
+    return {"model_progress_m": float(torch.stack(predicted).mean()),
+            "sim_progress_m": float((states[:, T, 0] - s0[:, 0]).mean()),
+            "model_path_error_m": float(torch.stack(replayed).mean())}
 
 
 def eval_seed(cfg: Config) -> int:
@@ -498,8 +592,8 @@ def evaluate_iteration(policy, model, designs, cfg: Config, i: int) -> dict:
     row = {"iteration": i, "distance_m": float(dist.mean()), "distance_min_m": float(dist.min()),
            "distance_max_m": float(dist.max())}
     if i > 0:
-        bias = [model_bias(policy, model, d, r.states, cfg) for d, r in results.items()]
-        row["model_progress_m"], row["sim_progress_m"] = (float(np.mean(v)) for v in zip(*bias))
+        bias = [model_bias(policy, model, d, r, cfg) for d, r in results.items()]
+        row.update({k: float(np.mean([b[k] for b in bias])) for k in bias[0]})
     return row
 
 
@@ -512,7 +606,7 @@ class Run:
 
     cfg: Config
     policy: ModularPolicy
-    model: ModularModel
+    model: Ensemble                  # f~_phi (one member in the paper)
     data: dict                       # T_train: design code -> Trajectories
     il_weight: float                 # lambda for the next iteration
     rng: np.random.Generator
@@ -578,7 +672,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
     if run is None:
         t0 = time.perf_counter()
         rng = seed_everything(cfg.seed)
-        policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
+        policy, model = ModularPolicy(cfg.gnn), Ensemble(cfg)
         if demo_data and cfg.bc_steps:                                                             # line 1
             log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
                 f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
@@ -613,7 +707,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
             f"{phase['reverts']} reverts, lr {phase['lr']:.1e}; {row['distance_m']:.2f} m "
             f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "
             f"first {cfg.horizon} steps: model {row['model_progress_m']:.2f} m, "
-            f"simulator {row['sim_progress_m']:.2f} m")
+            f"simulator {row['sim_progress_m']:.2f} m, model replaying the simulator's actions "
+            f"off by {row['model_path_error_m']:.2f} m")
         if on_iteration:
             on_iteration(run)
     return run

@@ -15,6 +15,7 @@ run is never overwritten: --resume continues it, --force starts afresh.
 """
 from __future__ import annotations
 
+import argparse
 import csv
 import dataclasses
 import inspect
@@ -32,7 +33,7 @@ import torch
 
 import modular_rlil_minimal as rlil
 import sim2d
-from gnn import GNNConfig, ModularModel, ModularPolicy
+from gnn import GNNConfig, ModularPolicy
 
 OUTPUTS = ("metrics.json", "metrics.csv", "curve.png", "policy.pt", "checkpoint.pt", "rollout.gif")
 
@@ -142,7 +143,7 @@ def load_checkpoint(path: Path) -> dict:
 
 
 def restore_run(ckpt: dict, cfg: rlil.Config) -> rlil.Run:
-    policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
+    policy, model = ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
@@ -258,7 +259,7 @@ PANELS = {   # panel: (trained design, demo designs), the paper's Fig. 3 (a)-(d)
 }
 
 
-def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int) -> list[dict]:
+def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int, panels: str = "abcd") -> list[dict]:
     """One entry per run of the sweep: its panel, method, seed, directory and train.py arguments.
 
     Every run has `base`'s budget; design, demos and seed are the panel's, and a
@@ -266,6 +267,8 @@ def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int) -> list[di
     """
     runs = []
     for panel, (design, demos) in PANELS.items():
+        if panel not in panels:
+            continue
         for method, demo_list in (("RL+IL", demos), ("RL", ())):
             for seed in range(seeds):
                 cfg = dataclasses.replace(base, train=(sim2d.parse_design(design),), seed=seed,
@@ -284,7 +287,7 @@ def finished_iterations(run_dir: Path) -> int:
         return -1
 
 
-def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None) -> list[str]:
+def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd") -> list[str]:
     """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
 
     Each run is a normal run directory under `out`, so a sweep resumes (finished
@@ -299,7 +302,7 @@ def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None) -> li
     log = log or rlil.ProgressLog()
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    runs = figure3_runs(out, base, seeds, jobs)
+    runs = figure3_runs(out, base, seeds, jobs, panels)
     todo = [r for r in runs if finished_iterations(r["dir"]) < base.iters]
     log(f"figure 3: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
 
@@ -328,8 +331,8 @@ def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None) -> li
             problems.append(f"({r['panel']}) {r['method']} seed {r['seed']}: {why}{max(n, 0)} of {base.iters} "
                             f"iterations ({r['dir']})")
     rows = figure3_rows(runs)
-    write_figure3(out, rows, base.iters, problems)
-    summary = summarize_figure3(rows, base.iters, seeds, problems)
+    write_figure3(out, rows, base.iters, problems, panels)
+    summary = summarize_figure3(rows, base.iters, seeds, problems, panels)
     atomic_write(out / "figure3.md", lambda p: Path(p).write_text(summary))
     print(summary)
     log(f"wrote {out / 'figure3.png'}, {out / 'figure3.csv'} and {out / 'figure3.md'}"
@@ -355,7 +358,7 @@ def converged_at(curve: dict, threshold: float):
     return next((i for i in sorted(curve) if curve[i] >= threshold), None)
 
 
-def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = ()) -> str:
+def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = (), panels: str = "abcd") -> str:
     """Markdown table per panel and method: iterations to converge, final distance, spread.
 
     Converged = the first iteration whose mean over seeds reaches 90 % of the
@@ -366,6 +369,8 @@ def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[s
     lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) |",
              "|---|---|---|---|---|---|---|"]
     for panel, (design, demos) in PANELS.items():
+        if panel not in panels:
+            continue
         runs = {}                                           # method -> seed -> iteration -> distance
         for r in rows:
             if r["panel"] == panel:
@@ -391,7 +396,7 @@ def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[s
     return "\n".join(lines) + "\n"
 
 
-def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = ()) -> None:
+def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = (), panels: str = "abcd") -> None:
     """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
     import matplotlib
     matplotlib.use("Agg")
@@ -403,8 +408,11 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
             w.writeheader()
             w.writerows(rows)
     atomic_write(out / "figure3.csv", write_csv)
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8 + 0.18 * len(problems)), dpi=100, sharey=True)
-    for ax, (panel, (design, demos)) in zip(axes, PANELS.items()):
+    shown = [(p, v) for p, v in PANELS.items() if p in panels]
+    fig, axes = plt.subplots(1, len(shown), figsize=(4 * len(shown), 3.8 + 0.18 * len(problems)), dpi=100,
+                             sharey=True, squeeze=False)
+    axes = axes[0]
+    for ax, (panel, (design, demos)) in zip(axes, shown):
         for method, colour in (("RL+IL", "tab:blue"), ("RL", "tab:red")):
             table = {}
             for row in rows:
@@ -448,6 +456,14 @@ def field_help(cls) -> dict[str, str]:
     return helps
 
 
+def parse_bool(text: str) -> bool:
+    """on/off, true/false, yes/no, 1/0 (argparse's type=bool would take "False" as True)."""
+    words = {"on": True, "true": True, "yes": True, "1": True, "off": False, "false": False, "no": False, "0": False}
+    if text.lower() not in words:
+        raise argparse.ArgumentTypeError(f"expected on/off (or true/false, yes/no, 1/0), got {text!r}")
+    return words[text.lower()]
+
+
 def config_flags() -> list[tuple[str, str, dataclasses.Field]]:
     """(flag, dest, field) for every Config field; GNNConfig's fields as --gnn-<name>."""
     flags = [("--" + f.name.replace("_", "-"), f.name, f) for f in dataclasses.fields(rlil.Config) if f.name != "gnn"]
@@ -481,12 +497,15 @@ def build_parser() -> sim2d.CliParser:
                    help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
     p.add_argument("--seeds", type=int, default=3, help="with --figure3: seeds per condition (default 3)")
     p.add_argument("--jobs", type=int, default=2, help="with --figure3: runs in parallel processes (default 2)")
+    p.add_argument("--panels", default="abcd", help="with --figure3: which panels, e.g. ad (default abcd)")
     group = p.add_argument_group("Algorithm 1 (modular_rlil_minimal.Config; defaults: the 5-minute CPU run)")
     default, helps = rlil.Config(), {**field_help(rlil.Config), **field_help(GNNConfig)}
     for flag, dest, f in config_flags():
         value = getattr(default.gnn, f.name) if dest.startswith("gnn_") else getattr(default, f.name)
-        kind = dict(nargs="+" if f.name == "train" else "*", metavar="DESIGN") if isinstance(value, tuple) \
-            else dict(type=type(value))
+        if isinstance(value, tuple):
+            kind = dict(nargs="+" if f.name == "train" else "*", metavar="DESIGN")
+        else:
+            kind = dict(type=parse_bool if isinstance(value, bool) else type(value))
         group.add_argument(flag, dest=dest, default=None, help=f"{helps[f.name]} (default {value})", **kind)
     return p
 
@@ -512,7 +531,10 @@ def main(argv=None) -> int:
         if args.figure3:
             if args.seeds < 1 or args.jobs < 1:
                 raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
-            problems = figure3(Path(args.out or "runs/figure3"), config_from_args(args), args.seeds, args.jobs)
+            if not args.panels or set(args.panels) - set(PANELS):
+                raise UsageError(f"--panels takes letters from abcd, got {args.panels!r}")
+            problems = figure3(Path(args.out or "runs/figure3"), config_from_args(args), args.seeds, args.jobs,
+                               panels=args.panels)
             return 1 if problems else 0
         if args.eval:
             if not args.design:

@@ -104,8 +104,9 @@ def test_model_fit_beats_predicting_no_change(car_data):
     graph = sim2d.design_graph("car")
     held_out = rlil.collect_random_rollouts("car", cfg, np.random.default_rng(1)).transitions()
     torch.manual_seed(0)
-    model = rlil.ModularModel(cfg.gnn)
-    loss = rlil.train_model(model, car_data, cfg, np.random.default_rng(0), first=True)
+    models = rlil.Ensemble(cfg)
+    loss = rlil.train_model(models, car_data, cfg, np.random.default_rng(0), first=True)
+    model = models.members[0]
     s, a, _ = car_data["wnwwnw"].transitions()
     torch.testing.assert_close(model.norm_in.wheel.mean, model.inputs(s, a, graph)["wheel"].reshape(-1, 2).mean(0))
     fitted = fraction_of_variance_left(model, *held_out, graph)
@@ -119,7 +120,7 @@ def test_validation_revert_goes_back_to_the_last_passed_check(monkeypatch, car_d
     k = 4 is below the start, so the policy reverts to its parameters at k = 2, not to the
     start, and the learning rate halves; a dip above the start (2.0 then 1.5) reverts nothing."""
     cfg = tiny(policy_steps=4, validate_every=2, update_rate=100, lr_drop=0.5, policy_lr=1e-3)
-    model = rlil.ModularModel(cfg.gnn)
+    model = rlil.Ensemble(cfg)
 
     def phase(values):
         rlil.seed_everything(0)
@@ -147,7 +148,7 @@ def test_non_finite_loss_never_reaches_the_parameters(monkeypatch, car_data):
     parameters stay exactly those of the phase's start."""
     cfg = tiny(policy_steps=3, validate_every=100)
     rlil.seed_everything(0)
-    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
     start = {k: v.clone() for k, v in policy.state_dict().items()}
     real = sim2d.reward
     monkeypatch.setattr(rlil.sim2d, "reward", lambda *a: real(*a) * float("nan"))
@@ -185,7 +186,7 @@ def test_policy_phase_refreshes_the_buffer_every_update_rate_steps(monkeypatch, 
     calls, real = [], rlil.refresh_buffer
     monkeypatch.setattr(rlil, "refresh_buffer", lambda *a: (calls.append(1), real(*a)))
     rlil.seed_everything(0)
-    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.ModularModel(cfg.gnn)
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
     rlil.optimize_policy(policy, model, car_data, {}, 0.0, cfg, np.random.default_rng(0))
     assert len(calls) == 3
 
@@ -200,7 +201,7 @@ def test_entropy_penalty_makes_the_policy_more_certain_on_demo_observations(car_
     demo observations than the same phase without it (same seeds; measured 7.44 against 7.92
     nats, and 8.4 with the penalty's sign flipped)."""
     cfg = tiny(policy_steps=10, validate_every=100)
-    model = rlil.ModularModel(cfg.gnn)
+    model = rlil.Ensemble(cfg)
     entropies = {}
     for weight in (0.0, 1.0):
         rlil.seed_everything(0)
@@ -261,14 +262,18 @@ def test_il_loss_equals_hand_computation():
 
 
 def test_model_bias_compares_model_and_simulator_progress():
-    """model_bias rolls the policy out T steps in the model from the evaluation starts and
-    reads the simulator's progress over the same T steps."""
+    """model_bias rolls the policy out T steps in the model from the evaluation starts, reads
+    the simulator's progress over the same T steps, and replays the simulator's actions in
+    the model (0.1 m per step against the simulator's 0.05)."""
     cfg = tiny(horizon=4, eval_steps=20)
     graph = sim2d.design_graph("car")
-    sim_states = np.zeros((3, cfg.eval_steps + 1, graph.state_dim))
-    sim_states[..., 0] = 0.05 * np.arange(cfg.eval_steps + 1)                # 0.05 m per step
-    model_m, sim_m = rlil.model_bias(rlil.ModularPolicy(cfg.gnn), Drifts(), "car", sim_states, cfg)
-    assert model_m == pytest.approx(0.4) and sim_m == pytest.approx(0.2)
+    states = np.zeros((3, cfg.eval_steps + 1, graph.state_dim))
+    states[..., 0] = 0.05 * np.arange(cfg.eval_steps + 1)                    # 0.05 m per step
+    run = sim2d.Episodes("wnwwnw", states, {}, np.zeros((3, cfg.eval_steps, graph.action_dim)), np.zeros(3, bool))
+    models = rlil.Ensemble(cfg)
+    models.members = torch.nn.ModuleList([Drifts()])
+    bias = rlil.model_bias(rlil.ModularPolicy(cfg.gnn), models, "car", run, cfg)
+    assert bias == pytest.approx({"model_progress_m": 0.4, "sim_progress_m": 0.2, "model_path_error_m": 0.2})
 
 
 # ----------------------------------------------------------------------------
@@ -437,3 +442,95 @@ def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
     table = (tmp_path / "figure3.md").read_text()
     assert "| (a) hexapod (hexapod demos) | RL+IL | 1 of 2 |" in table and "(a) RL+IL seed 1" in table
     assert "| 11.00 | 11.00 - 11.00 |" in table                      # seed 0's final alone
+
+
+# ----------------------------------------------------------------------------
+# Robustness to model error: ensemble, held-out validation, multi-step loss,
+# pessimism, contact features (each a Config switch, off = the paper)
+# ----------------------------------------------------------------------------
+class Shifts(torch.nn.Module):
+    """A model that moves x by `dx` m per step."""
+
+    def __init__(self, dx):
+        super().__init__()
+        self.dx = dx
+
+    def forward(self, s, a, graph):
+        return s + torch.nn.functional.one_hot(torch.tensor(0), s.shape[-1]) * self.dx
+
+
+def test_ensemble_trains_through_its_training_members_and_validates_on_the_held_out_ones():
+    cfg = tiny(ensemble=3, held_out_models=1)
+    models = rlil.Ensemble(cfg)
+    models.members = torch.nn.ModuleList([Shifts(0.1), Shifts(0.2), Shifts(5.0)])
+    s = torch.zeros(4, sim2d.design_graph("car").state_dim)
+    torch.manual_seed(0)
+    steps = {round(models(s, None, None)[0, 0].item(), 3) for _ in range(50)}
+    assert steps == {0.1, 0.2}                                  # a random training member per step, never #3
+    assert [m.dx for m in models.validation_models()] == [5.0]
+    models.n_train = 3
+    assert len(models.validation_models()) == 3                # none held out: validate on all
+
+
+def test_pessimism_subtracts_the_members_spread_of_predicted_progress():
+    cfg = tiny(ensemble=2, pessimism=2.0)
+    models = rlil.Ensemble(cfg)
+    models.members = torch.nn.ModuleList([Shifts(0.1), Shifts(0.3)])           # spread = std(0.1, 0.3)
+    graph = sim2d.design_graph("car")
+    policy = rlil.ModularPolicy(cfg.gnn)
+    s0 = torch.as_tensor(np.tile(sim2d.nominal_state(graph), (2, 1)), dtype=torch.float32)
+    h0 = policy.initial_hidden(2, graph)
+    torch.manual_seed(0)
+    plain, s_plain, _ = rlil.rollout(policy, models.members[0], s0, h0, graph, 1, deterministic=True)
+    torch.manual_seed(0)
+    R, s, _ = rlil.rollout(policy, models, s0, h0, graph, 1, deterministic=True, pessimism=2.0)
+    spread = torch.tensor([0.1, 0.3]).std()
+    moved = s[0, 0].item()
+    expected = plain + (moved - 0.1) - 2.0 * spread                         # progress of the member drawn
+    torch.testing.assert_close(R, expected)
+
+
+def test_multi_step_model_loss_is_the_open_loop_error_and_one_step_at_horizon_1(car_data):
+    cfg = tiny()
+    traj = car_data["wnwwnw"]
+    graph = sim2d.design_graph("car")
+    torch.manual_seed(0)
+    model = rlil.ModularModel(cfg.gnn)
+    flat = traj.transitions()
+    model.fit_normalization([(graph, *flat)])
+    one = rlil.model_loss(model, traj, flat, 64, 1, np.random.default_rng(0))
+    s, a, s_next = flat
+    i = torch.from_numpy(np.random.default_rng(0).integers(len(s), size=64))
+    torch.testing.assert_close(one, model.loss(s[i], a[i], s_next[i], graph))
+    H = 4
+    multi = rlil.model_loss(model, traj, flat, 64, H, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    e, t0 = rng.integers(traj.actions.shape[0], size=16), rng.integers(traj.actions.shape[1] - H + 1, size=16)
+    by_hand, x = 0.0, traj.states[e, t0]
+    for h in range(H):
+        x = model(x, traj.actions[e, t0 + h], graph)
+        err = gnn.node_state(x - traj.states[e, t0 + h + 1], graph)
+        by_hand += sum((err[k] / model.norm_out[k].std).pow(2).sum() for k in err) / x.numel()
+    torch.testing.assert_close(multi, by_hand / H)
+
+
+def test_contact_features_match_the_simulator_and_feed_the_model():
+    """Foot heights equal forward kinematics on simulated states; foot velocities equal the
+    derivative of the foot position along the state's own rates (checked by differences)."""
+    g = sim2d.design_graph("leg_none_wheel")
+    actions = sim2d.random_spline_actions(np.random.default_rng(0), 3, g.action_dim, 30)
+    S = sim2d.simulate(g, lambda o, s, t: actions[:, t], n=3, steps=30, seed=0).states.reshape(-1, g.state_dim)
+    f = sim2d.contact_features(S, g)
+    fk = sim2d.forward_kinematics(g, S)
+    np.testing.assert_allclose(f["leg"][..., 0], (fk["foot"][..., 1] - sim2d.FOOT_RADIUS) * sim2d.CM, atol=1e-12)
+    np.testing.assert_allclose(f["wheel"][..., 0], (fk["axle"][..., 1] - sim2d.WHEEL_RADIUS) * sim2d.CM, atol=1e-12)
+    rate = np.zeros_like(S)
+    rate[:, :3] = S[:, 3:6]
+    legs = sim2d.split_state(rate, g)["leg"]
+    legs[..., :2] = sim2d.split_state(S, g)["leg"][..., 2:]
+    eps = 1e-6
+    v = (sim2d.forward_kinematics(g, S + eps * rate)["foot"] - sim2d.forward_kinematics(g, S - eps * rate)["foot"])
+    np.testing.assert_allclose(f["leg"][..., 1:], v * sim2d.CM / (2 * eps), atol=1e-6)
+    model = rlil.ModularModel(gnn.GNNConfig(hidden=16, contact_features=True))
+    x = model.inputs(torch.as_tensor(S[:5], dtype=torch.float32), torch.zeros(5, g.action_dim), g)
+    assert x["leg"].shape == (5, 2, 9) and x["wheel"].shape == (5, 2, 3)
