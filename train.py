@@ -340,8 +340,13 @@ def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panel
     return problems
 
 
+FIGURE3_COLUMNS = ["panel", "train", "demos", "method", "seed", "iteration", "distance_m",
+                   "model_progress_m", "sim_progress_m"]
+
+
 def figure3_rows(runs: list[dict]) -> list[dict]:
-    """The CSV rows: panel,train,demos,method,seed,iteration,distance_m of every finished iteration."""
+    """The CSV rows (FIGURE3_COLUMNS) of every finished iteration; the model's and the simulator's
+    progress over the first T steps are empty at iteration 0 (no model yet)."""
     rows = []
     for r in runs:
         try:
@@ -349,7 +354,9 @@ def figure3_rows(runs: list[dict]) -> list[dict]:
         except (OSError, ValueError, KeyError):
             continue
         rows += [{"panel": r["panel"], "train": r["train"], "demos": r["demos"], "method": r["method"],
-                  "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"]} for m in metrics]
+                  "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"],
+                  "model_progress_m": m.get("model_progress_m"), "sim_progress_m": m.get("sim_progress_m")}
+                 for m in metrics]
     return rows
 
 
@@ -359,22 +366,31 @@ def converged_at(curve: dict, threshold: float):
 
 
 def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = (), panels: str = "abcd") -> str:
-    """Markdown table per panel and method: iterations to converge, final distance, spread.
+    """Markdown table per panel and method: iterations to converge, final distance, spread,
+    the largest drop of a seed between consecutive iterations, and model exploitation.
 
     Converged = the first iteration whose mean over seeds reaches 90 % of the
     best mean at iteration `iters` of either method in that panel (per seed: of
     that seed's curve).  Means are over the seeds that reached an iteration;
-    the "seeds" column says how many reached the last one.
+    the "seeds" column says how many reached the last one.  Spread = max - min
+    over seeds, averaged over iterations 1..iters.  Largest drop = the largest
+    fall of one seed from one iteration to the next after iteration 1.
+    Exploitation = the largest, over iterations >= 1, of the mean over seeds of
+    |model_progress_m - sim_progress_m| (the first T steps).
     """
-    lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) "
+             "| spread (m) | largest drop after it. 1 (m) | exploitation (m) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for panel, (design, demos) in PANELS.items():
         if panel not in panels:
             continue
-        runs = {}                                           # method -> seed -> iteration -> distance
+        runs, gaps = {}, {}                       # method -> seed -> iteration -> distance / |model - sim|
         for r in rows:
             if r["panel"] == panel:
                 runs.setdefault(r["method"], {}).setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
+                if r.get("model_progress_m") is not None and r.get("sim_progress_m") is not None:
+                    gaps.setdefault(r["method"], {}).setdefault(r["iteration"], []).append(
+                        abs(r["model_progress_m"] - r["sim_progress_m"]))
         mean = {m: {i: np.mean([c[i] for c in curves.values() if i in c])
                     for i in range(iters + 1) if any(i in c for c in curves.values())}
                 for m, curves in runs.items()}
@@ -386,11 +402,15 @@ def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[s
             final = [c[iters] for c in curves.values() if iters in c]
             head = f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} | {len(final)} of {seeds} |"
             if not final:
-                lines.append(head + " no run finished | | | |")
+                lines.append(head + " no run finished | | | | | | |")
                 continue
             per_seed = [converged_at(c, threshold) for c in curves.values()]
+            spread = np.mean([np.ptp([c[i] for c in curves.values() if i in c]) for i in range(1, iters + 1)])
+            drops = [c[i] - c[i + 1] for c in curves.values() for i in range(1, iters) if i + 1 in c]
+            gap = max((np.mean(v) for v in gaps.get(method, {}).values()), default=float("nan"))
             lines.append(f"{head} {fmt(converged_at(mean[method], threshold))} | {', '.join(map(fmt, per_seed))} | "
-                         f"{np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} |")
+                         f"{np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} | {spread:.2f} | "
+                         f"{max(drops, default=0.0):.2f} | {gap:.2f} |")
     if problems:
         lines += ["", "Missing or failed runs (left out of the means above):"] + [f"- {p}" for p in problems]
     return "\n".join(lines) + "\n"
@@ -404,7 +424,7 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
 
     def write_csv(p):
         with open(p, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=["panel", "train", "demos", "method", "seed", "iteration", "distance_m"])
+            w = csv.DictWriter(f, fieldnames=FIGURE3_COLUMNS)
             w.writeheader()
             w.writerows(rows)
     atomic_write(out / "figure3.csv", write_csv)

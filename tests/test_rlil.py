@@ -422,9 +422,9 @@ def test_figure3_reuses_finished_runs_and_writes_plot_and_csv(tmp_path):
     assert all("--threads" in r["args"] and r["args"][r["args"].index("--threads") + 1] == "1" for r in runs)
     assert train.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet) == []
     lines = (tmp_path / "figure3.csv").read_text().splitlines()
-    assert lines[0] == "panel,train,demos,method,seed,iteration,distance_m"
+    assert lines[0] == "panel,train,demos,method,seed,iteration,distance_m,model_progress_m,sim_progress_m"
     assert len(lines) == 1 + 16 * 2
-    assert "a,hexapod,hexapod,RL+IL,0,0,10.0" in lines and "d,leg_none_wheel,hexapod+car,RL,1,1," in "\n".join(lines)
+    assert "a,hexapod,hexapod,RL+IL,0,0,10.0,," in lines and "d,leg_none_wheel,hexapod+car,RL,1,1," in "\n".join(lines)
     assert not any((r["dir"] / "train.log").exists() for r in runs)    # nothing was run again
     assert (tmp_path / "figure3.png").stat().st_size > 10_000
     table = (tmp_path / "figure3.md").read_text()
