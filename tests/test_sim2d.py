@@ -166,3 +166,22 @@ def test_rendering_writes_files(tmp_path):
     sim2d.save_gif(g, states, str(tmp_path / "a.gif"))
     sim2d.save_png(g, states, str(tmp_path / "a.png"))
     assert (tmp_path / "a.gif").stat().st_size > 1000 and (tmp_path / "a.png").stat().st_size > 1000
+
+
+def test_set_motor_rates_moves_robots_exactly_as_the_public_rate_property():
+    g = sim2d.design_graph("leg_leg_wheel")
+    start = sim2d.sample_initial_states(g, 1, np.random.default_rng(5))[0]
+    rates = sim2d.random_spline_actions(np.random.default_rng(6), 1, g.action_dim, 30)[0] \
+        * sim2d.joint_speed_scale(g)                       # (30, A) rad/s
+    (public, motors_a), (fast, motors_b) = sim2d.build_robot(g, start), sim2d.build_robot(g, start)
+    ptrs = [m._constraint for m in motors_b]
+    for t in range(30):
+        for motor, r in zip(motors_a, rates[t].tolist()):
+            motor.rate = r
+        sim2d.set_motor_rates(ptrs, rates[t].tolist())
+        assert [m.rate for m in motors_a] == [m.rate for m in motors_b]
+        for _ in range(sim2d.STEPS_PER_ACTION):
+            public.step(sim2d.PHYSICS_DT)
+            fast.step(sim2d.PHYSICS_DT)
+        state = [(b.position, b.angle, b.velocity, b.angular_velocity) for b in public.bodies]
+        assert state == [(b.position, b.angle, b.velocity, b.angular_velocity) for b in fast.bodies]
