@@ -185,3 +185,46 @@ def test_set_motor_rates_moves_robots_exactly_as_the_public_rate_property():
             fast.step(sim2d.PHYSICS_DT)
         state = [(b.position, b.angle, b.velocity, b.angular_velocity) for b in public.bodies]
         assert state == [(b.position, b.angle, b.velocity, b.angular_velocity) for b in fast.bodies]
+
+
+def test_step_space_moves_robots_exactly_as_space_step():
+    g = sim2d.design_graph("hexapod")
+    start = sim2d.sample_initial_states(g, 1, np.random.default_rng(5))[0]
+    rates = sim2d.random_spline_actions(np.random.default_rng(6), 1, g.action_dim, 30)[0] \
+        * sim2d.joint_speed_scale(g)                       # (30, A) rad/s
+    (public, motors_a), (fast, motors_b) = sim2d.build_robot(g, start), sim2d.build_robot(g, start)
+    calls = []
+    for t in range(30):
+        for a, b, r in zip(motors_a, motors_b, rates[t].tolist()):
+            a.rate = b.rate = r
+        for _ in range(sim2d.STEPS_PER_ACTION):
+            public.step(sim2d.PHYSICS_DT)
+        sim2d.step_space(fast, sim2d.STEPS_PER_ACTION, calls.append)
+        state = [(b.position, b.angle, b.velocity, b.angular_velocity) for b in public.bodies]
+        assert state == [(b.position, b.angle, b.velocity, b.angular_velocity) for b in fast.bodies]
+    assert len(calls) == 30 * sim2d.STEPS_PER_ACTION and calls[0] is fast
+
+
+def test_contact_and_joint_errors_of_a_known_pose():
+    g = sim2d.design_graph("lnnnnn")                       # one leg: body, thigh, shin
+    space, _ = sim2d.build_robot(g, sim2d.nominal_state(g))
+    geometry = sim2d.robot_geometry(space)
+    raw = np.array([[b.position.x, b.position.y, b.angle] for b in space.bodies])[None]   # (1, 3, 3)
+    errors = sim2d.contact_and_joint_errors(raw, geometry)
+    assert errors["penetration_cm"] < 1e-9 and errors["joint_gap_cm"] < 1e-9   # it stands on the ground
+    assert errors["limit_violation_rad"] == 0.0
+    raw[0, 0, 1] -= 50.0                                   # the body 50 cm lower: its hip anchor 50 cm from the thigh's
+    raw[0, 2, 2] = raw[0, 1, 2] - 2.5                      # the shin turned so that the knee is 0.3 rad past -2.2
+    errors = sim2d.contact_and_joint_errors(raw, geometry)
+    assert np.isclose(errors["joint_gap_cm"], 50.0) and np.isclose(errors["limit_violation_rad"], 0.3)
+    body_bottom = raw[0, 0, 1] - sim2d.BODY_HEIGHT / 2     # the level body's lowest corners
+    assert np.isclose(errors["penetration_cm"], geometry["surface"] - body_bottom)
+
+
+def test_check_physics_command_line_ends_with_one_summary_line(capsys):
+    assert sim2d.main(["--check-physics", "--design", "car", "--random-codes", "0", "--robots", "1",
+                       "--steps", "3"]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    keys = [kv.split("=")[0] for kv in last.split()]
+    assert keys == ["max_penetration_cm", "max_joint_gap_cm", "max_limit_violation_rad"]
+    assert all(float(kv.split("=")[1]) >= 0 for kv in last.split())
