@@ -49,16 +49,38 @@ import torch
 # Physics constants, all in one place.  Internal units: cm, kg, s.
 # ----------------------------------------------------------------------------
 GRAVITY = 981.0            # cm/s^2
-PHYSICS_DT = 1.0 / 60.0    # s, one pymunk step (the paper's simulator step)
+PHYSICS_DT = 1.0 / 60.0    # s, the paper's simulator step
 STEPS_PER_ACTION = 5       # physics steps one action is held (paper: 5 x 1/60 s)
 CONTROL_DT = PHYSICS_DT * STEPS_PER_ACTION   # 1/12 s per control step
-SOLVER_ITERATIONS = 10     # pymunk's default; 20 and 30 cost 25-45 % more and
-                           # changed nothing we measured except chaotic edge cases
+# Contacts and joints (issue #11).  Each setting below was chosen with
+# `python sim2d.py --check-physics`: the deepest reach of any shape below the
+# ground / the widest pivot-joint gap / the largest joint-limit overshoot, after
+# every pymunk step, over 24 designs x {bang-bang, spline} actions x 8 robots x
+# 200 control steps; targets 2 cm / 1 cm / 0.05 rad.  The figures quoted are
+# what that check gave with this setting changed and all the others as chosen
+# (README, "Contacts and joints"); as chosen: 1.76 cm / 0.91 cm / 0.045 rad.
+PHYSICS_SUBSTEPS = 4       # pymunk steps of 1/240 s per 1/60 s physics step (ours, not the
+                           # paper's).  pymunk acts on a contact or a joint limit only once it is
+                           # already violated, so a foot hitting the ground at ~4 m/s sinks in by
+                           # speed x step: 1 sub-step 8.3 cm / 4.5 cm / 0.186 rad, 2: 3.3 / 1.9 /
+                           # 0.104, 3: 2.4 / 1.2 / 0.068.  Costs: the hexapod world runs at about
+                           # 0.6 x the speed of the old 1/60 s, 10-iteration one (README)
+SUBSTEP_DT = PHYSICS_DT / PHYSICS_SUBSTEPS   # s, one pymunk step
+SOLVER_ITERATIONS = 5      # per pymunk step (pymunk's default is 10): 3 left pivots 1.25 cm
+                           # apart; 10 narrow the widest gap to 0.60 cm but cost more time
+COLLISION_BIAS = 0.5 ** 60   # fraction of a contact's overlap left after 1 s (pymunk's default
+                             # 0.9 ** 60 corrects 10 % per 1/60 s, this 50 %): with the default
+                             # a foot pressed into the ground crept to 1.96 cm
+JOINT_ERROR_BIAS = 0.5 ** 60   # the same for pivot and limit joints: widest gap 1.06 cm with the default
 BODY_LENGTH, BODY_HEIGHT, BODY_MASS = 90.0, 16.0, 8.0     # cm, cm, kg
 PORT_X = (38.0, 0.0, -38.0)  # cm, hip/axle x in the body frame: front, middle, rear
 MOUNT_Y = -BODY_HEIGHT / 2   # cm, hips and axles sit on the body's underside
 THIGH, SHIN = 18.0, 18.0     # cm, leg link lengths
 LINK_MASS = 0.5              # kg per leg link
+LINK_ARMATURE = 300.0        # kg cm^2 added to each leg link's moment of inertia: the rotor
+                             # inertia of a geared joint motor (IsaacGym's DOF "armature").  A bare
+                             # link (20.8 kg cm^2) against the body (5,570) is too light for the
+                             # solver: without it pivots came 2.3 cm apart and limits 0.14 rad over
 LINK_RADIUS = 2.0            # cm, thickness of a link segment
 FOOT_RADIUS = 2.5            # cm, round foot at the end of the shin
 HIP_NOMINAL, KNEE_NOMINAL = 0.5, -1.0   # rad: the foot sits right under the hip
@@ -69,10 +91,15 @@ WHEEL_MASS = 1.0             # kg, same as one leg (two links)
 LEG_MAX_SPEED = 6.0          # rad/s at action 1 (hip and knee)
 WHEEL_MAX_SPEED = 3.5        # rad/s at action 1: 3.5 * 34.1 cm = 1.19 m/s, close to
                              # the hexapod's tripod gait (see README, "Physics")
-LEG_MAX_TORQUE = 4e5         # kg cm^2/s^2, motor max_force (unbounded if unset)
+LEG_MAX_TORQUE = 1.5e5       # kg cm^2/s^2, motor max_force (unbounded if unset).  4e5 (before
+                             # issue #11) pushed pivots 1.03 cm apart and feet 2.06 cm deep; at 1e5
+                             # the leg_none_wheel demonstrator nose-dives (0.42 m/s, 1.2e5: 0.99)
 WHEEL_MAX_TORQUE = 2e5
 FRICTION = 1.0               # ground, feet, wheels and body
-GROUND_RADIUS = 1.0          # cm; the ground is a finite, very long segment
+GROUND_TOP = 0.0             # cm, height of the ground's surface
+GROUND_THICKNESS = 100.0     # cm: the ground is a thick finite segment under y = GROUND_TOP.  The
+                             # old 2 cm one let fast feet tunnel through and hook underneath (26.8
+                             # cm deep at 1/60 s steps); at 1/240 s it allowed 1.97 cm
 GROUND_X = (-5000.0, 20000.0)   # cm: 50 m behind to 200 m ahead of the start
 FLIP_PITCH = math.pi / 2     # rad: |pitch| beyond this counts as flipped
 ROBOT_CAT, GROUND_CAT = 0b01, 0b10   # collision categories: limbs touch only ground
@@ -316,7 +343,7 @@ def standing_height(graph: DesignGraph, s: np.ndarray) -> np.ndarray:
     lowest = np.concatenate([fk["corners"][..., 1], fk["knee"][..., 1] - LINK_RADIUS,
                              fk["foot"][..., 1] - FOOT_RADIUS, fk["axle"][..., 1] - WHEEL_RADIUS],
                             axis=1).min(1)
-    return (GROUND_RADIUS - lowest) * CM
+    return (GROUND_TOP - lowest) * CM
 
 
 def nominal_state(graph: DesignGraph) -> np.ndarray:
@@ -389,8 +416,13 @@ def _point_velocity(body: pymunk.Body, p: pymunk.Vec2d) -> pymunk.Vec2d:
 
 
 def add_ground(space: pymunk.Space) -> pymunk.Shape:
-    """The ground: a finite static segment of radius GROUND_RADIUS along y = 0."""
-    ground = pymunk.Segment(space.static_body, (GROUND_X[0], 0.0), (GROUND_X[1], 0.0), GROUND_RADIUS)
+    """The ground: a static segment GROUND_THICKNESS thick whose top is the line y = GROUND_TOP.
+
+    Finite (GROUND_X), so that its bounding box stays small for pymunk's
+    collision search; thick, so that nothing passes through it in one step.
+    """
+    r = GROUND_THICKNESS / 2
+    ground = pymunk.Segment(space.static_body, (GROUND_X[0], GROUND_TOP - r), (GROUND_X[1], GROUND_TOP - r), r)
     ground.friction = FRICTION
     ground.filter = pymunk.ShapeFilter(categories=GROUND_CAT, mask=ROBOT_CAT)
     space.add(ground)
@@ -418,9 +450,12 @@ def add_joint(space: pymunk.Space, parent: pymunk.Body, child: pymunk.Body, anch
     """
     motor = pymunk.SimpleMotor(child, parent, 0.0)
     motor.max_force = max_torque                         # torque limit: unbounded if unset
-    space.add(pymunk.PivotJoint(parent, child, anchor), motor)
+    joints = [pymunk.PivotJoint(parent, child, anchor)]
     if limits is not None:
-        space.add(pymunk.RotaryLimitJoint(parent, child, *limits))
+        joints.append(pymunk.RotaryLimitJoint(parent, child, *limits))
+    for joint in joints:
+        joint.error_bias = JOINT_ERROR_BIAS
+    space.add(joints[0], motor, *joints[1:])             # the order pymunk solves them in
     return motor
 
 
@@ -431,7 +466,8 @@ def add_link(space: pymunk.Space, angle: float, w_abs: float, top: pymunk.Vec2d,
     Returns the link's body and its lower end (world, cm).
     """
     d = pymunk.Vec2d(math.sin(angle), -math.cos(angle))
-    b = pymunk.Body(LINK_MASS, pymunk.moment_for_segment(LINK_MASS, (0, length / 2), (0, -length / 2), LINK_RADIUS))
+    moment = pymunk.moment_for_segment(LINK_MASS, (0, length / 2), (0, -length / 2), LINK_RADIUS) + LINK_ARMATURE
+    b = pymunk.Body(LINK_MASS, moment)
     b.position, b.angle = top + d * (length / 2), angle
     b.angular_velocity = w_abs
     b.velocity = top_vel + _cross(w_abs, d * (length / 2))
@@ -478,6 +514,7 @@ def build_robot(graph: DesignGraph, state: np.ndarray) -> tuple[pymunk.Space, li
     space = pymunk.Space()
     space.gravity = (0.0, -GRAVITY)
     space.iterations = SOLVER_ITERATIONS
+    space.collision_bias = COLLISION_BIAS
     add_ground(space)
     parts = split_state(state, graph)
     body = add_body(space, parts["body"])
@@ -511,18 +548,19 @@ _space_step = pymunk._chipmunk_cffi.lib.cpSpaceStep   # private: use step_space
 
 
 def step_space(space: pymunk.Space, steps: int, after_each=None) -> None:
-    """Advance `space` by `steps` pymunk steps of PHYSICS_DT: `space.step(PHYSICS_DT)`, `steps` times.
+    """Advance `space` by `steps` pymunk steps of SUBSTEP_DT: `space.step(SUBSTEP_DT)`, `steps` times.
 
     Calls pymunk's C function cpSpaceStep directly.  `space.step` wraps it in
     Python bookkeeping for objects added or removed during a step and for
     post-step callbacks, none of which the world uses; skipping it saves about
-    0.8 µs a call.  tests/test_sim2d.py checks that it moves
+    0.8 µs a call, 20 calls per control step (hexapod world 7.9k -> 9.0k robot
+    steps/s, measured with --bench).  tests/test_sim2d.py checks that it moves
     robots exactly as `space.step` does.  after_each(space), if given, runs
     after every pymunk step (check_physics measures there).
     """
     ptr = space._space
     for _ in range(steps):
-        _space_step(ptr, PHYSICS_DT)
+        _space_step(ptr, SUBSTEP_DT)
         if after_each is not None:
             after_each(space)
 
@@ -609,7 +647,7 @@ class World:
         rates = (actions * self.action_scale).tolist()
         for space, motors, rate in zip(self.spaces, self._motor_ptrs, rates):
             set_motor_rates(motors, rate)
-            step_space(space, STEPS_PER_ACTION, self.after_physics_step)
+            step_space(space, STEPS_PER_ACTION * PHYSICS_SUBSTEPS, self.after_physics_step)
         s, s_next = self.state, self.read_state()
         r = reward(s, actions, s_next, self.graph)       # numpy here: a third of torch's cost on tiny arrays
         self.state, self.t = s_next, self.t + 1
@@ -746,7 +784,8 @@ def bench(designs=tuple(NAMED_DESIGNS), n: int = 16, steps: int = 100, repeats: 
     """Robot control steps per second: World.step vs bare pymunk driving the same robots.
 
     Bare pymunk = what a user of pymunk alone must do for the same motion: set
-    every motor's rate (`motor.rate = r`) and step the Space 5 times, with no
+    every motor's rate (`motor.rate = r`) and call `space.step(SUBSTEP_DT)` 5 x
+    PHYSICS_SUBSTEPS times, with the same Spaces (same solver settings) and no
     state read, observation or reward.  Both replay the same actions from the
     same start, alternating, in one process; best of `repeats` each.
     """
@@ -768,8 +807,8 @@ def bench(designs=tuple(NAMED_DESIGNS), n: int = 16, steps: int = 100, repeats: 
                 for space, motors, rate in zip(world.spaces, world.motors, rates[:, t].tolist()):
                     for motor, r in zip(motors, rate):
                         motor.rate = r
-                    for _ in range(STEPS_PER_ACTION):
-                        space.step(PHYSICS_DT)
+                    for _ in range(STEPS_PER_ACTION * PHYSICS_SUBSTEPS):
+                        space.step(SUBSTEP_DT)
             best_bare = min(best_bare, time.perf_counter() - t0)
         results[design] = {"world": n * steps / best_world, "bare": n * steps / best_bare}
     return results
