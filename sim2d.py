@@ -49,16 +49,38 @@ import torch
 # Physics constants, all in one place.  Internal units: cm, kg, s.
 # ----------------------------------------------------------------------------
 GRAVITY = 981.0            # cm/s^2
-PHYSICS_DT = 1.0 / 60.0    # s, one pymunk step (the paper's simulator step)
+PHYSICS_DT = 1.0 / 60.0    # s, the paper's simulator step
 STEPS_PER_ACTION = 5       # physics steps one action is held (paper: 5 x 1/60 s)
 CONTROL_DT = PHYSICS_DT * STEPS_PER_ACTION   # 1/12 s per control step
-SOLVER_ITERATIONS = 10     # pymunk's default; 20 and 30 cost 25-45 % more and
-                           # changed nothing we measured except chaotic edge cases
+# Contacts and joints (issue #11).  Each setting below was chosen with
+# `python sim2d.py --check-physics`: the deepest reach of any shape below the
+# ground / the widest pivot-joint gap / the largest joint-limit overshoot, after
+# every pymunk step, over 24 designs x {bang-bang, spline} actions x 8 robots x
+# 200 control steps; targets 2 cm / 1 cm / 0.05 rad.  The figures quoted are
+# what that check gave with this setting changed and all the others as chosen
+# (README, "Contacts and joints"); as chosen: 1.76 cm / 0.91 cm / 0.045 rad.
+PHYSICS_SUBSTEPS = 4       # pymunk steps of 1/240 s per 1/60 s physics step (ours, not the
+                           # paper's).  pymunk acts on a contact or a joint limit only once it is
+                           # already violated, so a foot hitting the ground at ~4 m/s sinks in by
+                           # speed x step: 1 sub-step 8.3 cm / 4.5 cm / 0.186 rad, 2: 3.3 / 1.9 /
+                           # 0.104, 3: 2.4 / 1.2 / 0.068.  Costs: the hexapod world runs at about
+                           # 0.6 x the speed of the old 1/60 s, 10-iteration one (README)
+SUBSTEP_DT = PHYSICS_DT / PHYSICS_SUBSTEPS   # s, one pymunk step
+SOLVER_ITERATIONS = 5      # per pymunk step (pymunk's default is 10): 3 left pivots 1.25 cm
+                           # apart; 10 narrow the widest gap to 0.60 cm but cost more time
+COLLISION_BIAS = 0.5 ** 60   # fraction of a contact's overlap left after 1 s (pymunk's default
+                             # 0.9 ** 60 corrects 10 % per 1/60 s, this 50 %): with the default
+                             # a foot pressed into the ground crept to 1.96 cm
+JOINT_ERROR_BIAS = 0.5 ** 60   # the same for pivot and limit joints: widest gap 1.06 cm with the default
 BODY_LENGTH, BODY_HEIGHT, BODY_MASS = 90.0, 16.0, 8.0     # cm, cm, kg
 PORT_X = (38.0, 0.0, -38.0)  # cm, hip/axle x in the body frame: front, middle, rear
 MOUNT_Y = -BODY_HEIGHT / 2   # cm, hips and axles sit on the body's underside
 THIGH, SHIN = 18.0, 18.0     # cm, leg link lengths
 LINK_MASS = 0.5              # kg per leg link
+LINK_ARMATURE = 300.0        # kg cm^2 added to each leg link's moment of inertia: the rotor
+                             # inertia of a geared joint motor (IsaacGym's DOF "armature").  A bare
+                             # link (20.8 kg cm^2) against the body (5,570) is too light for the
+                             # solver: without it pivots came 2.3 cm apart and limits 0.14 rad over
 LINK_RADIUS = 2.0            # cm, thickness of a link segment
 FOOT_RADIUS = 2.5            # cm, round foot at the end of the shin
 HIP_NOMINAL, KNEE_NOMINAL = 0.5, -1.0   # rad: the foot sits right under the hip
@@ -69,10 +91,15 @@ WHEEL_MASS = 1.0             # kg, same as one leg (two links)
 LEG_MAX_SPEED = 6.0          # rad/s at action 1 (hip and knee)
 WHEEL_MAX_SPEED = 3.5        # rad/s at action 1: 3.5 * 34.1 cm = 1.19 m/s, close to
                              # the hexapod's tripod gait (see README, "Physics")
-LEG_MAX_TORQUE = 4e5         # kg cm^2/s^2, motor max_force (unbounded if unset)
+LEG_MAX_TORQUE = 1.5e5       # kg cm^2/s^2, motor max_force (unbounded if unset).  4e5 (before
+                             # issue #11) pushed pivots 1.03 cm apart and feet 2.06 cm deep; at 1e5
+                             # the leg_none_wheel demonstrator nose-dives (0.42 m/s, 1.2e5: 0.99)
 WHEEL_MAX_TORQUE = 2e5
 FRICTION = 1.0               # ground, feet, wheels and body
-GROUND_RADIUS = 1.0          # cm; the ground is a finite, very long segment
+GROUND_TOP = 0.0             # cm, height of the ground's surface
+GROUND_THICKNESS = 100.0     # cm: the ground is a thick finite segment under y = GROUND_TOP.  The
+                             # old 2 cm one let fast feet tunnel through and hook underneath (26.8
+                             # cm deep at 1/60 s steps); at 1/240 s it allowed 1.97 cm
 GROUND_X = (-5000.0, 20000.0)   # cm: 50 m behind to 200 m ahead of the start
 FLIP_PITCH = math.pi / 2     # rad: |pitch| beyond this counts as flipped
 ROBOT_CAT, GROUND_CAT = 0b01, 0b10   # collision categories: limbs touch only ground
@@ -306,12 +333,12 @@ def contact_features(s, graph: DesignGraph) -> dict:
     a2, w2 = a1 + q[..., 1], w1 + q[..., 3]                                      # shin angle, rate
     kx, ky = THIGH * CM * xp.sin(a1), -THIGH * CM * xp.cos(a1)                   # hip -> knee, m
     fx, fy = SHIN * CM * xp.sin(a2), -SHIN * CM * xp.cos(a2)                     # knee -> foot, m
-    foot_y = y + hy + ky + fy - FOOT_RADIUS * CM
+    foot_y = y + hy + ky + fy - FOOT_RADIUS * CM - GROUND_TOP * CM
     foot_vx = hvx - w1 * ky - w2 * fy
     foot_vy = hvy + w1 * kx + w2 * fx
     wx, wy = mounts(graph.wheel_ports)
     _, axle_y, _, _ = on_body(wx, wy)
-    wheel = (y + axle_y - WHEEL_RADIUS * CM)[..., None]                          # (..., W, 1)
+    wheel = (y + axle_y - WHEEL_RADIUS * CM - GROUND_TOP * CM)[..., None]        # (..., W, 1)
     return {"leg": xp.stack([foot_y, foot_vx, foot_vy], -1), "wheel": wheel}
 
 
@@ -355,7 +382,7 @@ def standing_height(graph: DesignGraph, s: np.ndarray) -> np.ndarray:
     lowest = np.concatenate([fk["corners"][..., 1], fk["knee"][..., 1] - LINK_RADIUS,
                              fk["foot"][..., 1] - FOOT_RADIUS, fk["axle"][..., 1] - WHEEL_RADIUS],
                             axis=1).min(1)
-    return (GROUND_RADIUS - lowest) * CM
+    return (GROUND_TOP - lowest) * CM
 
 
 def nominal_state(graph: DesignGraph) -> np.ndarray:
@@ -410,6 +437,110 @@ def _cross(w: float, r) -> pymunk.Vec2d:
     return pymunk.Vec2d(-w * r[1], w * r[0])
 
 
+# Robot shapes share one group (they never collide with each other) and touch only the ground.
+LIMB_FILTER = pymunk.ShapeFilter(group=1, categories=ROBOT_CAT, mask=GROUND_CAT)
+
+
+def _add_shape(space: pymunk.Space, shape: pymunk.Shape) -> pymunk.Shape:
+    """Add a robot shape with the robot's friction and collision filter."""
+    space.add(shape)
+    shape.friction = FRICTION
+    shape.filter = LIMB_FILTER
+    return shape
+
+
+def _point_velocity(body: pymunk.Body, p: pymunk.Vec2d) -> pymunk.Vec2d:
+    """World velocity of the world point p fixed to `body`."""
+    return body.velocity + _cross(body.angular_velocity, p - body.position)
+
+
+def add_ground(space: pymunk.Space) -> pymunk.Shape:
+    """The ground: a static segment GROUND_THICKNESS thick whose top is the line y = GROUND_TOP.
+
+    Finite (GROUND_X), so that its bounding box stays small for pymunk's
+    collision search; thick, so that nothing passes through it in one step.
+    """
+    r = GROUND_THICKNESS / 2
+    ground = pymunk.Segment(space.static_body, (GROUND_X[0], GROUND_TOP - r), (GROUND_X[1], GROUND_TOP - r), r)
+    ground.friction = FRICTION
+    ground.filter = pymunk.ShapeFilter(categories=GROUND_CAT, mask=ROBOT_CAT)
+    space.add(ground)
+    return ground
+
+
+def add_body(space: pymunk.Space, body_state) -> pymunk.Body:
+    """The robot's body box in body state [x, y, pitch, vx, vy, pitch_rate] (m, rad, s)."""
+    x, y, pitch, vx, vy, w = body_state
+    body = pymunk.Body(BODY_MASS, pymunk.moment_for_box(BODY_MASS, (BODY_LENGTH, BODY_HEIGHT)))
+    body.position, body.angle = (x / CM, y / CM), pitch
+    body.velocity, body.angular_velocity = (vx / CM, vy / CM), w
+    space.add(body)
+    _add_shape(space, pymunk.Poly.create_box(body, (BODY_LENGTH, BODY_HEIGHT)))
+    return body
+
+
+def add_joint(space: pymunk.Space, parent: pymunk.Body, child: pymunk.Body, anchor: pymunk.Vec2d,
+              limits: tuple[float, float] | None, max_torque: float) -> pymunk.SimpleMotor:
+    """A revolute joint at the world point `anchor`: pivot, velocity motor, optional limits.
+
+    The motor drives child.angular_velocity - parent.angular_velocity (the
+    joint rate) to its rate, with torque up to max_torque; the limits bound
+    child.angle - parent.angle (the joint angle).
+    """
+    motor = pymunk.SimpleMotor(child, parent, 0.0)
+    motor.max_force = max_torque                         # torque limit: unbounded if unset
+    joints = [pymunk.PivotJoint(parent, child, anchor)]
+    if limits is not None:
+        joints.append(pymunk.RotaryLimitJoint(parent, child, *limits))
+    for joint in joints:
+        joint.error_bias = JOINT_ERROR_BIAS
+    space.add(joints[0], motor, *joints[1:])             # the order pymunk solves them in
+    return motor
+
+
+def add_link(space: pymunk.Space, angle: float, w_abs: float, top: pymunk.Vec2d, top_vel: pymunk.Vec2d,
+             length: float) -> tuple[pymunk.Body, pymunk.Vec2d]:
+    """A leg link hanging from `top` (world, cm) at world angle `angle`, turning at w_abs.
+
+    Returns the link's body and its lower end (world, cm).
+    """
+    d = pymunk.Vec2d(math.sin(angle), -math.cos(angle))
+    moment = pymunk.moment_for_segment(LINK_MASS, (0, length / 2), (0, -length / 2), LINK_RADIUS) + LINK_ARMATURE
+    b = pymunk.Body(LINK_MASS, moment)
+    b.position, b.angle = top + d * (length / 2), angle
+    b.angular_velocity = w_abs
+    b.velocity = top_vel + _cross(w_abs, d * (length / 2))
+    space.add(b)
+    _add_shape(space, pymunk.Segment(b, (0, length / 2), (0, -length / 2), LINK_RADIUS))
+    return b, top + d * length
+
+
+def add_leg(space: pymunk.Space, body: pymunk.Body, hip: pymunk.Vec2d, leg_state) -> list[pymunk.SimpleMotor]:
+    """Thigh, shin and foot hanging from `hip` (world, cm) in leg state [q_hip, q_knee, dq_hip, dq_knee].
+
+    Returns the [hip, knee] motors.
+    """
+    q_hip, q_knee, dq_hip, dq_knee = leg_state
+    pitch, w = body.angle, body.angular_velocity
+    thigh, knee = add_link(space, pitch + q_hip, w + dq_hip, hip, _point_velocity(body, hip), THIGH)
+    hip_motor = add_joint(space, body, thigh, hip, HIP_LIMITS, LEG_MAX_TORQUE)
+    shin, _ = add_link(space, pitch + q_hip + q_knee, w + dq_hip + dq_knee, knee,
+                       _point_velocity(thigh, knee), SHIN)
+    _add_shape(space, pymunk.Circle(shin, FOOT_RADIUS, (0, -SHIN / 2)))
+    knee_motor = add_joint(space, thigh, shin, knee, KNEE_LIMITS, LEG_MAX_TORQUE)
+    return [hip_motor, knee_motor]
+
+
+def add_wheel(space: pymunk.Space, body: pymunk.Body, axle: pymunk.Vec2d, dq_wheel: float) -> pymunk.SimpleMotor:
+    """A free-axle wheel at `axle` (world, cm) turning at dq_wheel relative to the body; its motor."""
+    wheel = pymunk.Body(WHEEL_MASS, pymunk.moment_for_circle(WHEEL_MASS, 0, WHEEL_RADIUS))
+    wheel.position, wheel.velocity = axle, _point_velocity(body, axle)
+    wheel.angular_velocity = body.angular_velocity + dq_wheel
+    space.add(wheel)
+    _add_shape(space, pymunk.Circle(wheel, WHEEL_RADIUS))
+    return add_joint(space, body, wheel, axle, None, WHEEL_MAX_TORQUE)
+
+
 def build_robot(graph: DesignGraph, state: np.ndarray) -> tuple[pymunk.Space, list]:
     """A fresh Space holding the ground and one robot in `state` (S,).
 
@@ -422,74 +553,57 @@ def build_robot(graph: DesignGraph, state: np.ndarray) -> tuple[pymunk.Space, li
     space = pymunk.Space()
     space.gravity = (0.0, -GRAVITY)
     space.iterations = SOLVER_ITERATIONS
-    ground = pymunk.Segment(space.static_body, (GROUND_X[0], 0.0), (GROUND_X[1], 0.0), GROUND_RADIUS)
-    ground.friction = FRICTION
-    ground.filter = pymunk.ShapeFilter(categories=GROUND_CAT, mask=ROBOT_CAT)
-    space.add(ground)
-    limb_filter = pymunk.ShapeFilter(group=1, categories=ROBOT_CAT, mask=GROUND_CAT)
-
+    space.collision_bias = COLLISION_BIAS
+    add_ground(space)
     parts = split_state(state, graph)
-    x, y, pitch, vx, vy, w = parts["body"]
-    body = pymunk.Body(BODY_MASS, pymunk.moment_for_box(BODY_MASS, (BODY_LENGTH, BODY_HEIGHT)))
-    body.position, body.angle = (x / CM, y / CM), pitch
-    body.velocity, body.angular_velocity = (vx / CM, vy / CM), w
-    box = pymunk.Poly.create_box(body, (BODY_LENGTH, BODY_HEIGHT))
-    space.add(body, box)
-    shapes, motors = [box], []
-
-    def attach(parent, child, anchor_world, lo_hi, rate_max, torque):
-        """Pivot at `anchor_world`, optional joint limits, velocity motor child-parent."""
-        pivot = pymunk.PivotJoint(parent, child, anchor_world)
-        motor = pymunk.SimpleMotor(child, parent, 0.0)   # drives w_child - w_parent to rate
-        motor.max_force = torque                         # torque limit: unbounded if unset
-        space.add(pivot, motor)
-        if lo_hi is not None:                            # limits child.angle - parent.angle
-            space.add(pymunk.RotaryLimitJoint(parent, child, *lo_hi))
-        motors.append(motor)
-
-    def point_velocity(b, p):
-        return b.velocity + _cross(b.angular_velocity, p - b.position)
-
-    def link(angle, w_abs, top, top_vel, length):
-        """A leg link hanging from `top` (world, cm) at world angle `angle`."""
-        d = pymunk.Vec2d(math.sin(angle), -math.cos(angle))
-        b = pymunk.Body(LINK_MASS, pymunk.moment_for_segment(LINK_MASS, (0, length / 2), (0, -length / 2), LINK_RADIUS))
-        b.position, b.angle = top + d * (length / 2), angle
-        b.angular_velocity = w_abs
-        b.velocity = top_vel + _cross(w_abs, d * (length / 2))
-        seg = pymunk.Segment(b, (0, length / 2), (0, -length / 2), LINK_RADIUS)
-        space.add(b, seg)
-        shapes.append(seg)
-        return b, top + d * length
-
+    body = add_body(space, parts["body"])
     fk = forward_kinematics(graph, state[None])
+    motors = []
     for k in range(graph.n_legs):
-        q_hip, q_knee, dq_hip, dq_knee = parts["leg"][k]
-        hip = pymunk.Vec2d(*fk["hip"][0, k])
-        thigh, knee = link(pitch + q_hip, w + dq_hip, hip, point_velocity(body, hip), THIGH)
-        attach(body, thigh, hip, HIP_LIMITS, LEG_MAX_SPEED, LEG_MAX_TORQUE)
-        shin, _ = link(pitch + q_hip + q_knee, w + dq_hip + dq_knee, knee,
-                       point_velocity(thigh, knee), SHIN)
-        foot = pymunk.Circle(shin, FOOT_RADIUS, (0, -SHIN / 2))
-        space.add(foot)
-        shapes.append(foot)
-        attach(thigh, shin, knee, KNEE_LIMITS, LEG_MAX_SPEED, LEG_MAX_TORQUE)
+        motors += add_leg(space, body, pymunk.Vec2d(*fk["hip"][0, k]), parts["leg"][k])
     for k in range(graph.n_wheels):
-        axle = pymunk.Vec2d(*fk["axle"][0, k])
-        wheel = pymunk.Body(WHEEL_MASS, pymunk.moment_for_circle(WHEEL_MASS, 0, WHEEL_RADIUS))
-        wheel.position, wheel.velocity = axle, point_velocity(body, axle)
-        wheel.angular_velocity = w + parts["wheel"][k, 0]
-        disc = pymunk.Circle(wheel, WHEEL_RADIUS)
-        space.add(wheel, disc)
-        shapes.append(disc)
-        attach(body, wheel, axle, None, WHEEL_MAX_SPEED, WHEEL_MAX_TORQUE)
-    for shape in shapes:
-        shape.friction = FRICTION
-        shape.filter = limb_filter
+        motors.append(add_wheel(space, body, pymunk.Vec2d(*fk["axle"][0, k]), parts["wheel"][k, 0]))
     return space, motors
 
 
-_set_motor_rate = pymunk._chipmunk_cffi.lib.cpSimpleMotorSetRate   # what SimpleMotor.rate = r calls
+_set_motor_rate = pymunk._chipmunk_cffi.lib.cpSimpleMotorSetRate   # private: use set_motor_rates
+
+
+def set_motor_rates(motor_ptrs: list, rates: list[float]) -> None:
+    """Set each motor's rate: exactly what `SimpleMotor.rate = r` does, for a list at once.
+
+    motor_ptrs are the motors' C pointers (`motor._constraint`); rates are
+    plain floats (rad/s).  `motor.rate = r` calls pymunk's C function
+    cpSimpleMotorSetRate through two layers of Python property code; calling
+    it directly (a private pymunk name, so it lives only here) costs 2.1 µs
+    for a hexapod's 12 motors instead of 7.0 µs (measured with timeit), about
+    as much as the rest of the world's overhead per robot step.
+    tests/test_sim2d.py checks that it moves robots exactly as `motor.rate = r` does.
+    """
+    list(map(_set_motor_rate, motor_ptrs, rates))
+
+
+_space_step = pymunk._chipmunk_cffi.lib.cpSpaceStep   # private: use step_space
+
+
+def step_space(space: pymunk.Space, steps: int, after_each=None) -> None:
+    """Advance `space` by `steps` pymunk steps of SUBSTEP_DT: `space.step(SUBSTEP_DT)`, `steps` times.
+
+    Calls pymunk's C function cpSpaceStep directly.  `space.step` wraps it in
+    Python bookkeeping for objects added or removed during a step and for
+    post-step callbacks, none of which the world uses; skipping it saves about
+    0.8 µs a call, 20 calls per control step (hexapod world 7.9k -> 9.0k robot
+    steps/s, measured with --bench).  tests/test_sim2d.py checks that it moves
+    robots exactly as `space.step` does.  after_each(space), if given, runs
+    after every pymunk step (check_physics measures there).
+    """
+    ptr = space._space
+    for _ in range(steps):
+        _space_step(ptr, SUBSTEP_DT)
+        if after_each is not None:
+            after_each(space)
+
+
 _BODY_FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
                 | pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY)
 
@@ -519,6 +633,7 @@ class World:
         self.action_scale = joint_speed_scale(self.graph)
         self._buffer = pymunk.batch.Buffer()
         self.spaces: list[pymunk.Space] = []
+        self.after_physics_step = None     # f(space) run after every pymunk step, for measurements
 
     # -- state ---------------------------------------------------------------
     def read_state(self) -> np.ndarray:
@@ -570,11 +685,8 @@ class World:
         actions = np.clip(actions, -1.0, 1.0)
         rates = (actions * self.action_scale).tolist()
         for space, motors, rate in zip(self.spaces, self._motor_ptrs, rates):
-            # `motor.rate = r` for every motor, minus two layers of Python property
-            # code that cost as much as the rest of the world's overhead together.
-            list(map(_set_motor_rate, motors, rate))
-            for _ in range(STEPS_PER_ACTION):
-                space.step(PHYSICS_DT)
+            set_motor_rates(motors, rate)
+            step_space(space, STEPS_PER_ACTION * PHYSICS_SUBSTEPS, self.after_physics_step)
         s, s_next = self.state, self.read_state()
         r = reward(s, actions, s_next, self.graph)       # numpy here: a third of torch's cost on tiny arrays
         self.state, self.t = s_next, self.t + 1
@@ -738,7 +850,8 @@ def bench(designs=tuple(NAMED_DESIGNS), n: int = 16, steps: int = 100, repeats: 
     """Robot control steps per second: World.step vs bare pymunk driving the same robots.
 
     Bare pymunk = what a user of pymunk alone must do for the same motion: set
-    every motor's rate (`motor.rate = r`) and step the Space 5 times, with no
+    every motor's rate (`motor.rate = r`) and call `space.step(SUBSTEP_DT)` 5 x
+    PHYSICS_SUBSTEPS times, with the same Spaces (same solver settings) and no
     state read, observation or reward.  Both replay the same actions from the
     same start, alternating, in one process; best of `repeats` each.
     """
@@ -760,11 +873,165 @@ def bench(designs=tuple(NAMED_DESIGNS), n: int = 16, steps: int = 100, repeats: 
                 for space, motors, rate in zip(world.spaces, world.motors, rates[:, t].tolist()):
                     for motor, r in zip(motors, rate):
                         motor.rate = r
-                    for _ in range(STEPS_PER_ACTION):
-                        space.step(PHYSICS_DT)
+                    for _ in range(STEPS_PER_ACTION * PHYSICS_SUBSTEPS):
+                        space.step(SUBSTEP_DT)
             best_bare = min(best_bare, time.perf_counter() - t0)
         results[design] = {"world": n * steps / best_world, "bare": n * steps / best_bare}
     return results
+
+
+# ----------------------------------------------------------------------------
+# Contacts and joints under any legal actions (issue #11), measured after
+# every physics step: a foot can tunnel and come back between control steps.
+# ----------------------------------------------------------------------------
+CHECK_SEED = 11        # seed of check_physics: its random codes, starts and actions
+CHECK_KINDS = ("bang-bang", "spline")
+
+
+def check_codes(designs=tuple(NAMED_DESIGNS), random_codes: int = 20, seed: int = CHECK_SEED) -> list[str]:
+    """The codes check_physics runs: the given designs, then `random_codes` others drawn
+    without replacement from all_designs() (minus the given ones) with rng `seed`."""
+    codes = list(dict.fromkeys(parse_design(d) for d in designs))
+    others = [c for c in all_designs() if c not in codes]
+    return codes + [str(c) for c in np.random.default_rng(seed).choice(others, random_codes, replace=False)]
+
+
+def bang_bang_actions(rng: np.random.Generator, n: int, action_dim: int, steps: int, hold: int = 3) -> np.ndarray:
+    """(n, steps, action_dim) actions of +-1 on every joint, signs redrawn every `hold` steps."""
+    signs = rng.choice([-1.0, 1.0], (n, -(-steps // hold), action_dim))
+    return np.repeat(signs, hold, axis=1)[:, :steps]
+
+
+def robot_geometry(space: pymunk.Space) -> dict:
+    """What check_physics measures in a robot's Space, by body index in pymunk.batch order.
+
+    "points": (P, 4) [body, x, y, radius] in the body's frame: circle centres,
+    segment ends and polygon corners, whose lowest reach is y - radius;
+    "pivots": (J, 6) [body a, body b, anchor a x, y, anchor b x, y];
+    "limits": (K, 4) [body a, body b, min, max] of b.angle - a.angle;
+    "surface": the top of the ground (cm).
+    """
+    index = {b: i for i, b in enumerate(space.bodies)}
+    points, surface = [], -math.inf
+    for shape in space.shapes:
+        if shape.body not in index:                                   # the ground
+            surface = max(surface, shape.cache_bb().top)
+        elif isinstance(shape, pymunk.Circle):
+            points.append([index[shape.body], *shape.offset, shape.radius])
+        elif isinstance(shape, pymunk.Segment):
+            points += [[index[shape.body], *p, shape.radius] for p in (shape.a, shape.b)]
+        else:
+            points += [[index[shape.body], *p, shape.radius] for p in shape.get_vertices()]
+    pivots = [[index[c.a], index[c.b], *c.anchor_a, *c.anchor_b]
+              for c in space.constraints if isinstance(c, pymunk.PivotJoint)]
+    limits = [[index[c.a], index[c.b], c.min, c.max]
+              for c in space.constraints if isinstance(c, pymunk.RotaryLimitJoint)]
+    return {"points": np.array(points), "pivots": np.array(pivots).reshape(-1, 6),
+            "limits": np.array(limits).reshape(-1, 4), "surface": surface}
+
+
+def contact_and_joint_errors(raw: np.ndarray, geometry: dict) -> dict:
+    """Worst errors over poses raw (K, bodies, 3) [x, y, angle] (cm, rad) of one robot kind.
+
+    penetration_cm: deepest reach of any shape below the ground's surface;
+    joint_gap_cm: largest distance between a pivot's two anchors in the world;
+    limit_violation_rad: largest joint angle beyond its RotaryLimitJoint range.
+    """
+    def world(body, local):                                           # (n,), (n, 2) -> (K, n, 2)
+        p, a = raw[:, body, :2], raw[:, body, 2]
+        c, s = np.cos(a), np.sin(a)
+        return p + np.stack([local[:, 0] * c - local[:, 1] * s, local[:, 0] * s + local[:, 1] * c], -1)
+
+    pts, piv, lim = geometry["points"], geometry["pivots"], geometry["limits"]
+    lowest = world(pts[:, 0].astype(int), pts[:, 1:3])[..., 1] - pts[:, 3]          # (K, P) cm
+    gap = np.linalg.norm(world(piv[:, 0].astype(int), piv[:, 2:4])
+                         - world(piv[:, 1].astype(int), piv[:, 4:6]), axis=-1)      # (K, J) cm
+    q = raw[:, lim[:, 1].astype(int), 2] - raw[:, lim[:, 0].astype(int), 2]         # (K, L) rad
+    over = np.maximum(q - lim[:, 3], lim[:, 2] - q)
+    return {"penetration_cm": max(0.0, float((geometry["surface"] - lowest).max())),
+            "joint_gap_cm": float(gap.max(initial=0.0)),
+            "limit_violation_rad": max(0.0, float(over.max(initial=0.0)))}
+
+
+def check_physics(designs=tuple(NAMED_DESIGNS), random_codes: int = 20, n: int = 8, steps: int = 200,
+                  kinds=CHECK_KINDS, seed: int = CHECK_SEED) -> dict:
+    """Drive robots with aggressive legal actions and measure how far contacts and joints give.
+
+    For each code of check_codes(designs, random_codes, seed) and each action
+    kind ("bang-bang": every joint at +-1, signs redrawn every 3 control steps;
+    "spline": random_spline_actions), n robots from perturbed starts run
+    `steps` control steps through World.step, and every physics step it takes
+    is measured (contact_and_joint_errors).  Returns {"rows": one dict per
+    (code, kind) with the three errors and the flips, "max_penetration_cm",
+    "max_joint_gap_cm", "max_limit_violation_rad"}.
+    """
+    rows, fields = [], pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
+    for code in check_codes(designs, random_codes, seed):
+        graph = design_graph(code)
+        for kind in kinds:
+            rng = np.random.default_rng(seed)
+            actions = (bang_bang_actions(rng, n, graph.action_dim, steps) if kind == "bang-bang"
+                       else random_spline_actions(rng, n, graph.action_dim, steps))
+            world = World(graph, n=n, max_steps=steps, seed=seed)
+            world.reset(seed=seed)
+            poses, buf = [], pymunk.batch.Buffer()                    # bytes of (bodies + 1, 3) per pymunk step
+
+            def record(space):
+                buf.clear()
+                pymunk.batch.get_space_bodies(space, fields, buf)
+                poses.append(bytes(buf.float_buf()))
+            world.after_physics_step = record
+            for t in range(steps):
+                world.step(actions[:, t])
+            raw = np.frombuffer(b"".join(poses)).reshape(len(poses), -1, 3)[:, :-1]   # drop the static body
+            errors = contact_and_joint_errors(raw, robot_geometry(world.spaces[0]))
+            rows.append({"code": code, "actions": kind, **errors, "flips": int(world.terminated.sum()),
+                         "pymunk_steps": len(poses) // n})
+    return {"rows": rows, **{f"max_{k}": max(r[k] for r in rows)
+                             for k in ("penetration_cm", "joint_gap_cm", "limit_violation_rad")}}
+
+
+def check_physics_main(argv: list[str]) -> int:
+    """`python sim2d.py --check-physics [--design D ...]`: the table of check_physics and one summary line."""
+    parser = CliParser(prog="sim2d.py --check-physics",
+                       description="Measure ground penetration, joint gaps and limit overshoot under "
+                                   "bang-bang and random spline actions, after every physics step.")
+    parser.add_argument("--check-physics", action="store_true")
+    parser.add_argument("--design", nargs="+", action="extend",
+                        help="names or codes to check (default: the four named designs)")
+    parser.add_argument("--random-codes", type=int, default=20,
+                        help="how many other codes of the 728 to add, drawn with --seed (0: none)")
+    parser.add_argument("--robots", type=int, default=8, help="perturbed starts per design and action kind")
+    parser.add_argument("--steps", type=int, default=200, help="control steps per run")
+    parser.add_argument("--seed", type=int, default=CHECK_SEED, help="seed of the codes, starts and actions")
+    args = parser.parse_args(argv)
+    if args.random_codes < 0 or args.robots < 1 or args.steps < 1:
+        parser.error("--random-codes must be >= 0, --robots and --steps >= 1")
+    try:
+        designs = [parse_design(d) for d in (args.design or NAMED_DESIGNS)]
+    except ValueError as e:
+        parser.error(str(e))
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    result = check_physics(designs, args.random_codes, args.robots, args.steps, seed=args.seed)
+    print(f"{'design':15s} {'actions':9s} {'penetration_cm':>14s} {'joint_gap_cm':>12s} "
+          f"{'limit_rad':>9s} {'flips':>5s}")
+    for r in result["rows"]:
+        print(f"{design_name(r['code']):15s} {r['actions']:9s} {r['penetration_cm']:14.2f} "
+              f"{r['joint_gap_cm']:12.2f} {r['limit_violation_rad']:9.3f} {r['flips']:5d}")
+    random_rows = [r for r in result["rows"] if r["code"] not in designs]
+    for kind in CHECK_KINDS:
+        rows = [r for r in random_rows if r["actions"] == kind]
+        if rows:
+            print(f"{f'{len(rows)} random codes':15s} {kind:9s} {max(r['penetration_cm'] for r in rows):14.2f} "
+                  f"{max(r['joint_gap_cm'] for r in rows):12.2f} "
+                  f"{max(r['limit_violation_rad'] for r in rows):9.3f} {sum(r['flips'] for r in rows):5d}  (max, flips summed)")
+    print(f"{args.robots} robots x {args.steps} control steps x {result['rows'][0]['pymunk_steps'] // args.steps} "
+          f"pymunk steps, each measured, per design and action kind; seed {args.seed}; "
+          f"{time.perf_counter() - t0:.1f} s")
+    print(f"max_penetration_cm={result['max_penetration_cm']:.2f} max_joint_gap_cm={result['max_joint_gap_cm']:.2f} "
+          f"max_limit_violation_rad={result['max_limit_violation_rad']:.3f}")
+    return 0
 
 
 class CliParser(argparse.ArgumentParser):
@@ -785,6 +1052,11 @@ def main(argv=None) -> int:
     parser.add_argument("--gif", help="write an animation of the run to this path")
     parser.add_argument("--png", help="write six snapshots of the run to this path")
     parser.add_argument("--bench", action="store_true", help="time the world against bare pymunk")
+    parser.add_argument("--check-physics", action="store_true", help="measure ground penetration, joint "
+                        "gaps and limit overshoot under aggressive actions (--check-physics --help)")
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if "--check-physics" in argv:
+        return check_physics_main(argv)
     args = parser.parse_args(argv)
     if args.bench:
         torch.set_num_threads(1)
