@@ -957,7 +957,8 @@ def check_physics_main(argv: list[str]) -> int:
     for kind in CHECK_KINDS:
         rows = [r for r in random_rows if r["actions"] == kind]
         if rows:
-            print(f"{f'{len(rows)} random codes':15s} {kind:9s} {max(r['penetration_cm'] for r in rows):14.2f} "
+            label = f"{len(rows)} random code{'s' if len(rows) > 1 else ''}"
+            print(f"{label:15s} {kind:9s} {max(r['penetration_cm'] for r in rows):14.2f} "
                   f"{max(r['joint_gap_cm'] for r in rows):12.2f} "
                   f"{max(r['limit_violation_rad'] for r in rows):9.3f} {sum(r['flips'] for r in rows):5d}  (max, flips summed)")
     print(f"{args.robots} robots x {args.steps} control steps x {result['rows'][0]['pymunk_steps'] // args.steps} "
