@@ -67,6 +67,12 @@ class DemoConfig:
     tracking_gain: float = 1.0
     """fraction of the joint-angle error closed in one control step (0.5-1; 1
     commands the rate that reaches the reference exactly, kp = 12 /s)."""
+    execution_noise: float = 0.0
+    """std of smooth random noise (sim2d.random_spline_actions) added to the actions
+    the robot executes, not to the actions recorded (0-0.3).  The recorded
+    action is the demonstrator's answer in the state the noise led to, so the
+    dataset shows recoveries as well as the gait (DART, Laskey et al. 2017).
+    0 = the paper's noiseless demonstrations."""
     wheel_pitch_backoff: float = 0.5
     """rad of |pitch| at which the wheels stop driving (0.3-1.0); linear below."""
 
@@ -330,12 +336,20 @@ def collect_demos(design: str, episodes: int = 50, steps: int = 100, seed: int =
                   cfg: DemoConfig = DemoConfig()) -> DemoData:
     """Run the demonstrator on `episodes` perturbed robots at once for `steps` control steps."""
     graph = validate_request(design, episodes, steps)
-    run = sim2d.simulate(graph, Demonstrator(graph, cfg), n=episodes, steps=steps,
+    demonstrator, labels = Demonstrator(graph, cfg), []
+    noise = sim2d.random_spline_actions(np.random.default_rng(demo_seed(graph.code, seed) + 1), episodes,
+                                        graph.action_dim, steps, std=cfg.execution_noise)   # (E, T, A)
+
+    def act(obs, state, t):                                      # executes a_t + noise, records a_t
+        labels.append(demonstrator(obs, state, t))
+        return labels[-1] + noise[:, t] if cfg.execution_noise else labels[-1]
+
+    run = sim2d.simulate(graph, act, n=episodes, steps=steps,
                          seed=demo_seed(graph.code, seed))       # perturbed initial states, p(s)
     return DemoData(
         design=graph.code,
         obs=run.obs,                                             # o_t: what the policy sees, (E, T, ...)
-        actions=run.actions,                                     # a_t: what it should do, (E, T, A)
+        actions=np.stack(labels, 1),                             # a_t: what it should do, (E, T, A)
         states=run.states,                                       # (E, T + 1, S)
         distance_m=run.distance_m,                               # (E,)
         flipped=run.flipped,                                     # (E,) sticky: flipped at any step

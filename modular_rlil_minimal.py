@@ -61,6 +61,8 @@ class Config:
     # Demonstrations (Sec. III-D): the paper's 50 x 100
     demo_episodes: int = 50          # demonstration episodes per demo design (paper: 50)
     demo_steps: int = 100            # control steps per demonstration episode (paper: 100)
+    demo_noise: float = 0.0          # std of smooth noise added to the demonstrators' executed (not recorded)
+                                     # actions, so T_demo shows recoveries (DART); 0 = the paper
     # Line 1: behavioural cloning
     bc_steps: int = 1000             # Adam steps of pre-training, 0 to skip; 300 cloned the
                                      # hexapod gait to 4-11 m in 200 steps, 1000 to 8-11 m
@@ -122,7 +124,7 @@ def preset(name: str = "default", **overrides) -> Config:
 
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
-    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0,
+    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0,
     "held_out_models": 0, "pessimism": 0.0}
 
 
@@ -635,7 +637,8 @@ def load_demos(cfg: Config, cache_dir=demo_lib.DEFAULT_CACHE_DIR) -> dict:
     out = {}
     for design in cfg.demos:
         data = demo_lib.load_or_make_demos(design, episodes=cfg.demo_episodes, steps=cfg.demo_steps,
-                                           seed=cfg.seed, cache_dir=cache_dir)
+                                           seed=cfg.seed, cache_dir=cache_dir,
+                                           cfg=demo_lib.DemoConfig(execution_noise=cfg.demo_noise))
         out[sim2d.parse_design(design)] = data
     return out
 

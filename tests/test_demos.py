@@ -214,3 +214,17 @@ def test_cli_prints_summary_and_loads_cache(tmp_path):
 
 def test_doctests():
     assert doctest.testmod(demos).failed == 0
+
+
+def test_execution_noise_perturbs_the_robot_but_records_the_demonstrators_answer():
+    """DART-style demos: the robot executes a_t + noise, the dataset records a_t, the
+    demonstrator's own answer in each state the noise led to."""
+    cfg = demos.DemoConfig(execution_noise=0.2)
+    noisy = demos.collect_demos("hexapod", episodes=4, steps=20, seed=0, cfg=cfg)
+    clean = demos.collect_demos("hexapod", episodes=4, steps=20, seed=0)
+    assert np.array_equal(noisy.states[:, 0], clean.states[:, 0])            # same starts
+    assert not np.allclose(noisy.states[:, -1], clean.states[:, -1])         # the noise moved the robots
+    replay = demos.Demonstrator("hexapod", cfg)
+    for t in range(20):
+        obs = {k: v[:, t] for k, v in noisy.obs.items()}
+        np.testing.assert_array_equal(replay(obs, noisy.states[:, t], t), noisy.actions[:, t])
