@@ -337,12 +337,13 @@ def collect_demos(design: str, episodes: int = 50, steps: int = 100, seed: int =
     """Run the demonstrator on `episodes` perturbed robots at once for `steps` control steps."""
     graph = validate_request(design, episodes, steps)
     demonstrator, labels = Demonstrator(graph, cfg), []
-    noise = sim2d.random_spline_actions(np.random.default_rng(demo_seed(graph.code, seed) + 1), episodes,
-                                        graph.action_dim, steps, std=cfg.execution_noise)   # (E, T, A)
+    noise = (sim2d.random_spline_actions(np.random.default_rng(demo_seed(graph.code, seed) + 1), episodes,
+                                         graph.action_dim, steps, std=cfg.execution_noise)   # (E, T, A)
+             if cfg.execution_noise else np.zeros((episodes, steps, graph.action_dim)))
 
     def act(obs, state, t):                                      # executes a_t + noise, records a_t
         labels.append(demonstrator(obs, state, t))
-        return labels[-1] + noise[:, t] if cfg.execution_noise else labels[-1]
+        return labels[-1] + noise[:, t]
 
     run = sim2d.simulate(graph, act, n=episodes, steps=steps,
                          seed=demo_seed(graph.code, seed))       # perturbed initial states, p(s)

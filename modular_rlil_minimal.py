@@ -7,7 +7,9 @@ in Algorithm 1's order:
 
     pretrain_bc              line 1      behavioural cloning on T_demo, eqn. (IL_loss)
     collect_random_rollouts  line 2      random spline actions (Sec. III-B)
-    train_model              line 5      modular model f~_phi on T_train (Sec. III-C)
+    train_model              line 5      modular model f~_phi on T_train (Sec. III-C); `Ensemble`
+                                         and `model_loss` hold the switches against model error
+                                         (ensemble, held-out validation, multi-step loss), off by default
     optimize_policy          lines 7-26  K steps of L = L_RL + lambda L_IL:
       init_buffer / refresh_buffer       lines 7, 22-25: initial states with hidden states
       rl_loss, rollout                   lines 9-16, eqn. (RL_loss)
@@ -20,7 +22,7 @@ in Algorithm 1's order:
 
 CPU, a few minutes (the command line is train.py):
     python train.py --train leg_none_wheel --demos hexapod car
-    python train.py --train car --preset tiny          # 30-second class demo
+    python train.py --train car --preset tiny          # class demo, about 12 s
 """
 from __future__ import annotations
 
@@ -104,7 +106,7 @@ class Config:
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
-# Named budgets.  "tiny" is the tests' budget and a 30-second class demo
+# Named budgets.  "tiny" is the tests' budget and a class demo of about 12 s
 # (`python train.py --train car --preset tiny`): the car learns to drive in it.
 PRESETS = {
     "default": {},

@@ -6,7 +6,7 @@ Demonstrations", Algorithm 1 (run by modular_rlil_minimal.py) and Sec. IV
 
     python train.py --train leg_none_wheel --demos hexapod car     # RL+IL
     python train.py --train leg_none_wheel                         # plain RL baseline
-    python train.py --train car --preset tiny                      # 30-second class demo
+    python train.py --train car --preset tiny                      # class demo, about 12 s
     python train.py --eval runs/leg_none_wheel-hexapod_car-seed0 --design hexapod --gif h.gif
 
 A run directory holds metrics.json, metrics.csv, curve.png, policy.pt (config
@@ -506,7 +506,7 @@ def config_args(cfg: rlil.Config) -> list[str]:
 def build_parser() -> sim2d.CliParser:
     p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) on the planar world.")
     p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
-                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget, a 30-second class demo)")
+                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget, a class demo of about 12 s)")
     p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>)")
     p.add_argument("--resume", action="store_true", help="continue an existing run after its last iteration")
     p.add_argument("--force", action="store_true", help="start afresh, replacing an existing run's outputs")
