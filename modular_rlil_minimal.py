@@ -15,6 +15,7 @@ in Algorithm 1's order:
       rl_loss, rollout                   lines 9-16, eqn. (RL_loss)
       il_loss                            lines 17-19, eqn. (IL_loss), + entropy penalty (Sec. III-J)
       rlil_loss                          line 19, eqn. (RLIL_loss)
+      trust_region_loss                  not in the paper: KL to the previous iteration's policy, off by default
       AdaptiveLearningRate               Sec. III-J: validation reward, revert, lower rate
     collect_policy_rollouts  lines 27-29 policy data without and with correlated noise
     decay_il_weight          line 30
@@ -37,7 +38,7 @@ import torch
 
 import demos as demo_lib
 import sim2d
-from gnn import GNNConfig, ModularModel, ModularPolicy
+from gnn import GNNConfig, ModularModel, ModularPolicy, gaussian_kl
 
 
 # ----------------------------------------------------------------------------
@@ -100,6 +101,9 @@ class Config:
                                      # H = open-loop H-step windows of T_train (multi-step loss)
     pessimism: float = 0.0           # reward penalty per metre of spread of the training members'
                                      # predicted progress (MOPO, Yu et al. 2020); needs ensemble - held_out >= 2
+    trust_region: float = 0.0        # weight of a penalty on KL(previous iteration's policy || policy) on
+                                     # windows of T_train (a soft trust region, as in TRPO / PPO's KL
+                                     # penalty, Schulman et al. 2015, 2017); 0 = the paper
     # Evaluation (Sec. IV): distance in 200 control steps
     eval_episodes: int = 8           # perturbed starts per evaluation
     eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
@@ -128,7 +132,7 @@ def preset(name: str = "default", **overrides) -> Config:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0,
-    "held_out_models": 0, "pessimism": 0.0}
+    "held_out_models": 0, "pessimism": 0.0, "trust_region": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -388,6 +392,33 @@ def il_loss(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.
     return loss, entropy
 
 
+def trust_region_loss(policy: ModularPolicy, anchor: ModularPolicy, data: dict[str, Trajectories],
+                      cfg: Config, rng: np.random.Generator) -> torch.Tensor:
+    """Not in the paper: KL(pi_anchor || pi_theta), the anchor being the policy at the start of this
+    policy phase (the previous iteration's policy), on the observations of `il_batch` windows of
+    `il_window` steps of T_train per training design, both policies run from zero hidden states.
+    Mean over windows and steps, summed over designs.  Penalising it keeps each iteration's policy
+    near the one whose data T_train holds (a soft trust region: TRPO's constraint, PPO's KL penalty,
+    Schulman et al. 2015, 2017), so the RL term cannot walk far into states the model has not seen."""
+    loss = 0.0
+    for design, traj in data.items():
+        graph = sim2d.design_graph(design)
+        episodes, steps = traj.actions.shape[:2]
+        e = torch.from_numpy(rng.integers(episodes, size=cfg.il_batch))
+        t0 = torch.from_numpy(rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch))
+        obs = sim2d.observe(traj.states[e[:, None], t0[:, None] + torch.arange(cfg.il_window)], graph)
+        h = h_anchor = policy.initial_hidden(cfg.il_batch, graph)                   # (batch, nodes, H)
+        kl = 0.0
+        for t in range(cfg.il_window):
+            o = {k: v[:, t] for k, v in obs.items()}                                # (batch, ...)
+            mean, log_std, h = policy(o, graph, h)
+            with torch.no_grad():
+                mean_a, log_std_a, h_anchor = anchor(o, graph, h_anchor)
+            kl = kl + gaussian_kl(mean_a, log_std_a, mean, log_std).mean()
+        loss = loss + kl / cfg.il_window
+    return loss
+
+
 def rlil_loss(loss_rl, loss_il, il_weight: float):
     """eqn. (RLIL_loss): L = L_RL + lambda L_IL."""
     return loss_rl + il_weight * loss_il
@@ -506,7 +537,8 @@ def gradient_step(opt, loss, policy, grad_clip: float) -> bool:
 
 def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Trajectories],
                     demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator) -> dict:
-    """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen.
+    """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen
+    (+ trust_region x `trust_region_loss` when that switch is on).
 
     Returns the phase's metrics: RL and IL loss (means of the last 10 steps;
     il_loss None without IL), the last passed validation reward, reverts and
@@ -515,6 +547,7 @@ def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Traj
     model.requires_grad_(False)                                                   # frozen in this phase
     buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}                # line 7
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
+    anchor = copy.deepcopy(policy).requires_grad_(False) if cfg.trust_region else None
     opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr)
     lr_rule = AdaptiveLearningRate(policy, opt, validation_reward(policy, model, val_states, cfg), cfg.lr_drop)
     rl_values, il_values = [], []
@@ -525,6 +558,8 @@ def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Traj
             loss_il, entropy = il_loss(policy, demo_data, cfg, rng)                                # line 18
             loss = rlil_loss(loss_rl, loss_il + cfg.entropy_weight * entropy, il_weight)          # line 19
             il_values.append(loss_il.item())
+        if anchor is not None:                                    # not in the paper: a soft trust region
+            loss = loss + cfg.trust_region * trust_region_loss(policy, anchor, data, cfg, rng)
         if not gradient_step(opt, loss, policy, cfg.grad_clip):                                    # line 21
             lr_rule.revert()                                  # a non-finite loss or gradient: never step on it
             continue
