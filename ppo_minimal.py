@@ -11,7 +11,8 @@ same policy network as Algorithm 1 of modular_rlil_minimal.py
 (`modular_rlil_minimal.evaluate_policy`: distance in 200 control steps from
 the same 8 perturbed starts), so numbers compare one to one.
 
-    collect_episodes   PPO line 3: N robots run pi_theta_old for one episode of T steps each
+    collect_episodes   PPO lines 2-3: N robots run pi_theta_old for one episode of T steps each
+    ReturnScale        rewards divided by the running std of the discounted return (CleanRL)
     gae                PPO line 4, eqns. 11-12: advantages A_t, bootstrapped at the time limit
     ppo_loss           eqn. 9 built on eqn. 7: -L^CLIP + c1 L^VF - c2 S
     ppo_update         PPO line 6: K epochs of minibatch Adam steps on ppo_loss
@@ -189,7 +190,7 @@ class Batch:
 
 @torch.no_grad()
 def collect_episodes(policy: Memoryless, value: ModularValue, cfg: PPOConfig, rng: np.random.Generator) -> Batch:
-    """PPO line 3: N robots run pi_theta_old for one episode of T steps each, from p(s).
+    """PPO lines 2-3: N robots run pi_theta_old for one episode of T steps each, from p(s).
 
     Every episode ends at the time limit T, which is not the end of the task:
     GAE bootstraps with V(o_T) there (Pardo et al. 2018).  A robot that flips
@@ -293,21 +294,19 @@ def ppo_loss(policy: Memoryless, value: ModularValue, mb: dict, graph, cfg: PPOC
     return loss, stats
 
 
-def ppo_update(policy: Memoryless, value: ModularValue, opt, batch: Batch, cfg: PPOConfig,
-               rng: np.random.Generator) -> dict:
-    """PPO line 6: optimise eqn. 9 for K epochs of minibatches of the valid samples.
-    Returns the metrics of the last epoch, averaged over its minibatches."""
+def ppo_update(policy: Memoryless, value: ModularValue, opt, batch: Batch, advantages, returns,
+               cfg: PPOConfig, rng: np.random.Generator) -> dict:
+    """PPO line 6: optimise eqn. 9 for K epochs of minibatches of the valid samples, given `gae`'s
+    advantages and returns (N, T).  Returns the last epoch's metrics, averaged over its minibatches."""
     graph = sim2d.design_graph(cfg.train[0])
-    advantages, returns = gae(batch.rewards, batch.values, batch.last_value, batch.terminal,
-                              cfg.gamma, cfg.gae_lambda)                                   # (N, T) x 2
     keep = batch.valid.flatten()                                                          # (N T,)
     data = {"obs": {k: v.flatten(0, 1)[keep] for k, v in batch.obs.items()},
             "actions": batch.actions.flatten(0, 1)[keep], "log_probs": batch.log_probs.flatten()[keep],
             "advantages": advantages.flatten()[keep], "returns": returns.flatten()[keep]}  # (M_all, ...)
     params = list(policy.parameters()) + list(value.parameters())
-    for epoch in range(cfg.epochs):
+    for _ in range(cfg.epochs):
         stats = []
-        for idx in np.array_split(rng.permutation(int(keep.sum())), cfg.minibatches):
+        for idx in np.array_split(rng.permutation(int(keep.sum())), min(cfg.minibatches, int(keep.sum()))):
             i = torch.from_numpy(idx)
             mb = {k: ({o: x[i] for o, x in v.items()} if k == "obs" else v[i]) for k, v in data.items()}
             loss, s = ppo_loss(policy, value, mb, graph, cfg)
@@ -390,11 +389,12 @@ def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None
         if cfg.anneal_lr:
             for group in run.opt.param_groups:
                 group["lr"] = cfg.lr * (1 - (i - 1) / n_iters)
-        batch = collect_episodes(policy, run.value, cfg, run.rng)                       # PPO lines 2-5
+        batch = collect_episodes(policy, run.value, cfg, run.rng)                       # PPO lines 2-3
         run.return_scale.update(batch.rewards, batch.valid, cfg.gamma)
-        batch.rewards = run.return_scale(batch.rewards)
-        stats = ppo_update(policy, run.value, run.opt, batch, cfg, run.rng)             # PPO line 6
-        run.iteration, run.sim_steps = i, run.sim_steps + cfg.robots * cfg.episode_steps  # line 7: theta_old <- theta
+        advantages, returns = gae(run.return_scale(batch.rewards), batch.values, batch.last_value,
+                                  batch.terminal, cfg.gamma, cfg.gae_lambda)            # PPO line 4
+        stats = ppo_update(policy, run.value, run.opt, batch, advantages, returns, cfg, run.rng)   # PPO line 6
+        run.iteration, run.sim_steps = i, run.sim_steps + cfg.robots * cfg.episode_steps  # PPO line 7: theta_old <- theta
         train_distance.append(batch.distance_m.mean())
         if i % per_eval == 0 or i == n_iters:
             row = evaluation_row(run, 0.0)
@@ -426,7 +426,8 @@ def bench(design: str = "hexapod", threads: int = 1) -> dict:
     batch = collect_episodes(policy, run.value, cfg, run.rng)
     t_collect = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ppo_update(policy, run.value, run.opt, batch, cfg, run.rng)
+    advantages, returns = gae(batch.rewards, batch.values, batch.last_value, batch.terminal, cfg.gamma, cfg.gae_lambda)
+    ppo_update(policy, run.value, run.opt, batch, advantages, returns, cfg, run.rng)
     t_update = time.perf_counter() - t0
     # one minibatch (N T / minibatches samples) forward + backward, without and with the recurrence
     per_mb = cfg.robots * cfg.episode_steps // cfg.minibatches
