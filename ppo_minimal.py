@@ -73,8 +73,8 @@ class PPOConfig:
     ent_coef: float = 0.0            # c2, weight of the entropy bonus (eqn. 9)
     max_grad_norm: float = 0.5       # gradient-norm clip of every Adam step
     norm_adv: bool = True            # normalise advantages per minibatch
-    init_std: float = 0.6            # the policy's std at the start (its log-std heads' bias); gnn's
-                                     # default, 0.29, explored too little to find a gait (README, PPO)
+    init_std: float = 0.6            # the policy's std at the start (its log-std heads' bias; gnn's
+                                     # initialisation gives 0.29); 0.3-1 (README, PPO: Tuning)
     eval_every: int = 50_000         # simulator steps between evaluations (rounded to whole iterations)
     # Evaluation (Sec. IV of Whitman & Choset): distance in 200 control steps, as for Algorithm 1
     eval_episodes: int = 8           # perturbed starts per evaluation

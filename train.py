@@ -732,7 +732,7 @@ def config_args(cfg) -> list[str]:
 
 
 def build_parser() -> sim2d.CliParser:
-    p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) on the planar world.")
+    p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) and the PPO baseline on the planar world.")
     p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
                    f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget, a class demo of about 12 s)")
     p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>)")
