@@ -22,12 +22,12 @@ The policy's memory: `Memoryless` runs gnn.ModularPolicy with its GRU memory
 reset to h = 0 before every step, in training and in evaluation, so every
 sample's log-probability is one batched forward pass.  Handling the memory as
 CleanRL's LSTM PPO does (re-running each robot's sequence in order for every
-minibatch) costs about 10x more per update on this CPU (`python ppo_minimal.py
---bench`; README, "PPO").
+minibatch) cost 20-40x more per minibatch on this CPU (`python ppo_minimal.py
+--bench`; README, "The model-free baseline: PPO").
 
-CPU (the command line is train.py):
-    python train.py --train hexapod --method ppo                  # 2 M simulator steps
-    python train.py --train car --method ppo --preset tiny        # the car learns to drive, ~15 s
+CPU, one thread (the command line is train.py):
+    python train.py --train hexapod --method ppo          # 2 M steps, 2.2 min per 100 k (15 m at 614 k, seed 0)
+    python train.py --train car --method ppo --preset tiny        # the car learns to drive, ~10 s
 """
 from __future__ import annotations
 
