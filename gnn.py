@@ -1,4 +1,5 @@
-"""Modular graph neural networks: the policy pi_theta(a | o, d) and the model f~_phi(s, a, d).
+"""Modular graph neural networks: the policy pi_theta(a | o, d) and the model f~_phi(s, a, d)
+(and, for the PPO baseline of ppo_minimal.py, a critic V_psi(o, d)).
 
 Paper (Whitman & Choset, "Learning Modular Robot Locomotion from
 Demonstrations"): Sec. II-B "Modular policies" (one network per module type,
@@ -229,6 +230,32 @@ class ModularPolicy(nn.Module):
             log_probs.append(gaussian_log_prob(mean, log_std, actions_seq[:, t]))          # (n,)
             entropies.append(gaussian_entropy(log_std))                                     # (n,)
         return torch.stack(log_probs, 1), torch.stack(entropies, 1)                         # (n, T) x 2
+
+
+class ModularValue(nn.Module):
+    """V_psi(o, d): the value of an observation, for the model-free baseline (ppo_minimal.py).
+
+    Not in the paper, whose Algorithm 1 needs no critic.  The same modular
+    structure as the policy without the memory: one set of layers per module
+    type, encode + message passing on the design graph, a scalar per node;
+    V = the mean of the node scalars, so its scale does not grow with the
+    number of limbs.
+    """
+
+    def __init__(self, cfg: GNNConfig = GNNConfig()):
+        super().__init__()
+        self.cfg = cfg
+        self.nets = nn.ModuleDict({"body": type_net("body", BODY_OBS_DIM, 1, cfg.hidden, recurrent=False),
+                                   "leg": type_net("leg", LEG_OBS_DIM, 1, cfg.hidden, recurrent=False),
+                                   "wheel": type_net("wheel", WHEEL_OBS_DIM, 1, cfg.hidden, recurrent=False)})
+
+    def forward(self, obs: dict, graph) -> torch.Tensor:
+        """`observe`'s dict of tensors (n, ...) -> V (n,)."""
+        kinds = node_types(graph)
+        o = {"body": obs["body"][:, None], "leg": obs["leg"], "wheel": obs["wheel"]}        # (n, N_k, O_k)
+        z = propagate(self.nets, encode(self.nets, {k: o[k] * OBS_SCALE[k] for k in kinds}, graph),
+                      self.cfg.rounds)
+        return torch.cat([self.nets[k].head(z[k]) for k in kinds], 1).mean((1, 2))         # (n,)
 
 
 # ----------------------------------------------------------------------------

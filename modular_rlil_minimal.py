@@ -619,6 +619,16 @@ def model_bias(policy: ModularPolicy, models: Ensemble, design: str, run: sim2d.
             "model_path_error_m": float(torch.stack(replayed).mean())}
 
 
+def sim_steps(cfg: Config, i: int) -> int:
+    """Simulator steps Algorithm 1 has taken by the end of iteration i (for comparison with PPO):
+    the demonstrations (counted once, at iteration 0, even when loaded from the cache), the
+    random roll-outs of line 2 and the clean and noisy policy roll-outs of lines 28-29.
+    Evaluation in the simulator (every row's distance, `model_bias`) is not counted."""
+    demos = len(cfg.demos) * cfg.demo_episodes * cfg.demo_steps
+    random = len(cfg.train) * cfg.random_episodes * cfg.episode_steps
+    return demos + random + i * len(cfg.train) * 2 * cfg.policy_episodes * cfg.episode_steps
+
+
 def eval_seed(cfg: Config) -> int:
     """Evaluation starts are the same at every iteration (and differ from training data)."""
     return 1_000_003 + cfg.seed
@@ -721,7 +731,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
         run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
         row = evaluate_iteration(policy, model, data, cfg, 0)
-        record(run, {**row, "il_weight": run.il_weight, "seconds": time.perf_counter() - t0}, log)
+        record(run, {**row, "il_weight": run.il_weight, "sim_steps": sim_steps(cfg, 0),
+                     "seconds": time.perf_counter() - t0}, log)
         log(f"iteration 0: {row['distance_m']:.2f} m in {cfg.eval_steps} steps")
         if on_iteration:
             on_iteration(run)
@@ -741,7 +752,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         # -- evaluation in the simulator (Sec. IV), not part of Algorithm 1 --
         row = evaluate_iteration(policy, model, data, cfg, i)
         record(run, {**row, "il_weight": il_weight, "model_loss": model_loss, **phase,
-                     "seconds": time.perf_counter() - t0}, log)
+                     "sim_steps": sim_steps(cfg, i), "seconds": time.perf_counter() - t0}, log)
         log(f"iter {i}  model loss {model_loss:.4f}; policy: RL loss {phase['rl_loss']:.3f}, "
             f"{phase['reverts']} reverts, lr {phase['lr']:.1e}; {row['distance_m']:.2f} m "
             f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "

@@ -1,13 +1,16 @@
-"""Command line for Algorithm 1: train, resume, evaluate, plot.
+"""Command line for Algorithm 1 and the PPO baseline: train, resume, evaluate, plot.
 
 Paper: Whitman & Choset, "Learning Modular Robot Locomotion from
 Demonstrations", Algorithm 1 (run by modular_rlil_minimal.py) and Sec. IV
-(distance in 200 control steps).  CPU, about 5 minutes:
+(distance in 200 control steps); the model-free baseline PPO (ppo_minimal.py).
+CPU, about 5 minutes:
 
     python train.py --train leg_none_wheel --demos hexapod car     # RL+IL
     python train.py --train leg_none_wheel                         # plain RL baseline
     python train.py --train car --preset tiny                      # class demo, about 12 s
+    python train.py --train hexapod --method ppo                   # PPO, 2 M simulator steps
     python train.py --eval runs/leg_none_wheel-hexapod_car-seed0 --design hexapod --gif h.gif
+    python train.py --sample-efficiency                            # RL, RL+IL and PPO per simulator step
 
 A run directory holds metrics.json, metrics.csv, curve.png, policy.pt (config
 inside), checkpoint.pt (everything a resume needs) and rollout.gif.  An existing
@@ -32,6 +35,7 @@ import numpy as np
 import torch
 
 import modular_rlil_minimal as rlil
+import ppo_minimal as ppo_lib
 import sim2d
 from gnn import GNNConfig, ModularPolicy
 
@@ -45,8 +49,15 @@ class UsageError(Exception):
 # ----------------------------------------------------------------------------
 # Small helpers: run names, atomic writes, config round trip
 # ----------------------------------------------------------------------------
-def run_name(cfg: rlil.Config) -> str:
+def is_ppo(cfg) -> bool:
+    """A PPO baseline config (ppo_minimal.PPOConfig) rather than Algorithm 1's (Config)."""
+    return isinstance(cfg, ppo_lib.PPOConfig)
+
+
+def run_name(cfg) -> str:
     train = "+".join(sim2d.design_name(sim2d.parse_design(d)) for d in cfg.train)
+    if is_ppo(cfg):
+        return f"{train}-ppo-seed{cfg.seed}"
     demos = "_".join(sim2d.design_name(sim2d.parse_design(d)) for d in cfg.demos) or "rl"
     return f"{train}-{demos}-seed{cfg.seed}"
 
@@ -71,16 +82,29 @@ def versions() -> dict:
             "python": sys.version.split()[0]}
 
 
-def config_to_dict(cfg: rlil.Config) -> dict:
-    """The Config as JSON-able dict, with the library versions under "versions"."""
-    return {**dataclasses.asdict(cfg), "versions": versions()}
+def config_to_dict(cfg) -> dict:
+    """The config as JSON-able dict, with the library versions under "versions" and
+    "method": "ppo" for a PPO run (Algorithm 1's runs have no "method")."""
+    return {**dataclasses.asdict(cfg), **({"method": "ppo"} if is_ppo(cfg) else {}), "versions": versions()}
 
 
-def config_from_dict(d: dict) -> rlil.Config:
-    d = {k: v for k, v in d.items() if k != "versions"}
+def config_from_dict(d: dict):
+    d = {k: v for k, v in d.items() if k not in ("versions", "method")}
     d["gnn"] = GNNConfig(**d["gnn"])
-    d["train"], d["demos"] = tuple(d["train"]), tuple(d["demos"])
+    d["train"] = tuple(d["train"])
+    if "env_steps" in d:                                  # written with "method": "ppo"
+        return ppo_lib.PPOConfig(**d)
+    d["demos"] = tuple(d["demos"])
     return rlil.Config(**d)
+
+
+def method_of(cfg) -> str:
+    return "PPO" if is_ppo(cfg) else "RL+IL" if cfg.demos else "RL"
+
+
+def eval_policy(cfg, policy: ModularPolicy):
+    """The policy as evaluated: PPO trained it without its memory (ppo_minimal.Memoryless)."""
+    return ppo_lib.Memoryless(policy) if is_ppo(cfg) else policy
 
 
 # ----------------------------------------------------------------------------
@@ -99,21 +123,26 @@ def save_metrics(out: Path, cfg: rlil.Config, metrics: list[dict]) -> None:
     atomic_write(out / "metrics.csv", write_csv)
 
 
-def save_curve(out: Path, cfg: rlil.Config, metrics: list[dict]) -> None:
+COLOURS = {"RL+IL": "tab:blue", "RL": "tab:red", "PPO": "tab:green"}
+
+
+def save_curve(out: Path, cfg, metrics: list[dict]) -> None:
+    """curve.png: distance per iteration (Algorithm 1) or per simulator step (PPO)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    it = [m["iteration"] for m in metrics]
+    x_key = "sim_steps" if is_ppo(cfg) else "iteration"
+    it = [m[x_key] for m in metrics]
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
-    colour = "tab:blue" if cfg.demos else "tab:red"
-    ax.plot(it, [m["distance_m"] for m in metrics], "o-", color=colour,
-            label=("RL+IL" if cfg.demos else "RL") + f" (seed {cfg.seed})")
+    colour = COLOURS[method_of(cfg)]
+    ax.plot(it, [m["distance_m"] for m in metrics], "o-", color=colour, label=f"{method_of(cfg)} (seed {cfg.seed})")
     ax.fill_between(it, [m["distance_min_m"] for m in metrics], [m["distance_max_m"] for m in metrics],
                     color=colour, alpha=0.2, label="min-max over starts")
-    ax.set_xlabel("iteration")
+    ax.set_xlabel("simulator steps (evaluation excluded)" if is_ppo(cfg) else "iteration")
     ax.set_ylabel(f"distance in {cfg.eval_steps} steps (m)")
     ax.set_title(run_name(cfg))
-    ax.set_xticks(it)
+    if not is_ppo(cfg):
+        ax.set_xticks(it)
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -121,11 +150,18 @@ def save_curve(out: Path, cfg: rlil.Config, metrics: list[dict]) -> None:
     plt.close(fig)
 
 
-def save_checkpoint(out: Path, run: rlil.Run) -> None:
+def save_checkpoint(out: Path, run) -> None:
     """policy.pt (policy + config, for --eval) and checkpoint.pt (everything, for --resume)."""
     cfg = config_to_dict(run.cfg)
     atomic_write(out / "policy.pt", lambda p: torch.save(
         {"config": cfg, "policy": run.policy.state_dict(), "iteration": run.iteration}, p))
+    if is_ppo(run.cfg):
+        atomic_write(out / "checkpoint.pt", lambda p: torch.save({
+            "config": cfg, "policy": run.policy.state_dict(), "value": run.value.state_dict(),
+            "opt": run.opt.state_dict(), "iteration": run.iteration, "sim_steps": run.sim_steps,
+            "return_scale": dataclasses.asdict(run.return_scale), "metrics": run.metrics,
+            "rng": run.rng_state()}, p))
+        return
     atomic_write(out / "checkpoint.pt", lambda p: torch.save({
         "config": cfg, "policy": run.policy.state_dict(), "model": run.model.state_dict(),
         "data": {d: {"states": t.states, "actions": t.actions} for d, t in run.data.items()},
@@ -142,7 +178,16 @@ def load_checkpoint(path: Path) -> dict:
         raise UsageError(f"cannot read checkpoint {path} ({type(e).__name__}): the file is corrupt or not from train.py")
 
 
-def restore_run(ckpt: dict, cfg: rlil.Config) -> rlil.Run:
+def restore_run(ckpt: dict, cfg):
+    if is_ppo(cfg):
+        run = ppo_lib.new_run(cfg)
+        run.policy.load_state_dict(ckpt["policy"])
+        run.value.load_state_dict(ckpt["value"])
+        run.opt.load_state_dict(ckpt["opt"])
+        run.iteration, run.sim_steps, run.metrics = ckpt["iteration"], ckpt["sim_steps"], ckpt["metrics"]
+        run.return_scale = ppo_lib.ReturnScale(**ckpt["return_scale"])
+        run.rng = rlil.Run.rng_from_state(ckpt["rng"])
+        return run
     policy, model = ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
@@ -151,10 +196,10 @@ def restore_run(ckpt: dict, cfg: rlil.Config) -> rlil.Run:
                     ckpt["iteration"], ckpt["metrics"])
 
 
-def save_rollouts(out: Path, run: rlil.Run) -> None:
+def save_rollouts(out: Path, run) -> None:
     """rollout.gif: the final policy on each training design (one file per extra design)."""
-    for k, design in enumerate(run.data):
-        result = rlil.evaluate_policy(run.policy, design, run.cfg, rlil.eval_seed(run.cfg))
+    for k, design in enumerate(run.cfg.train):
+        result = rlil.evaluate_policy(eval_policy(run.cfg, run.policy), design, run.cfg, rlil.eval_seed(run.cfg))
         name = "rollout.gif" if k == 0 else f"rollout_{sim2d.design_name(design)}.gif"
         atomic_write(out / name, lambda p: sim2d.save_gif(design, result.states[0], p, every=2))
 
@@ -175,9 +220,10 @@ def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
     out.mkdir(parents=True, exist_ok=True)
 
 
-def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False, log=None,
+def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
           cache_dir=rlil.demo_lib.DEFAULT_CACHE_DIR) -> list[dict]:
-    """Run (or continue) Algorithm 1 with every output written after each iteration.
+    """Run (or continue) Algorithm 1 (a Config) or PPO (a PPOConfig) with every output written
+    after each iteration (PPO: after each evaluation).
 
     Everything is checked before anything is written: a bad config or design is
     a UsageError, and a run that fails before its first checkpoint leaves no
@@ -185,47 +231,51 @@ def train(cfg: rlil.Config, out: Path, resume: bool = False, force: bool = False
     """
     log = log or rlil.ProgressLog()
     try:
-        cfg = rlil.validate_config(cfg)
+        cfg = (ppo_lib if is_ppo(cfg) else rlil).validate_config(cfg)
     except ValueError as e:
         raise UsageError(str(e))
+    budget = "env_steps" if is_ppo(cfg) else "iters"          # the one field a resume may change
     resuming = resume and (out / "checkpoint.pt").exists()
     run = None
     if resuming:
         ckpt = load_checkpoint(out / "checkpoint.pt")
         saved = config_from_dict(ckpt["config"])
-        if dataclasses.replace(saved, iters=cfg.iters) != cfg:
-            raise UsageError(f"--resume with a different configuration than {out}'s: "
-                             "only --iters may change (start a new --out for other settings)")
+        if type(saved) is not type(cfg) or dataclasses.replace(saved, **{budget: getattr(cfg, budget)}) != cfg:
+            raise UsageError(f"--resume with a different configuration than {out}'s: only "
+                             f"--{budget.replace('_', '-')} may change (start a new --out for other settings)")
         run = restore_run(ckpt, cfg)
         log(f"resuming {out} after iteration {run.iteration}")
     created = not out.exists()
     prepare_run_dir(out, resume, force and not resuming)
-    durations, t_last = [], time.perf_counter()
+    total = ppo_lib.iterations(cfg) if is_ppo(cfg) else cfg.iters
+    durations, last = [], {"t": time.perf_counter(), "iteration": run.iteration if run else 0}
 
-    def on_iteration(run: rlil.Run) -> None:          # after iteration 0 and every later one
-        nonlocal t_last
+    def on_iteration(run) -> None:          # after iteration 0 and every later one (PPO: every evaluation)
         save_checkpoint(out, run)
         save_metrics(out, run.cfg, run.metrics)
         save_curve(out, run.cfg, run.metrics)
-        if run.iteration > 0:
-            durations.append(time.perf_counter() - t_last)
-            log(f"iteration {run.iteration}/{cfg.iters} done; about "
-                f"{(cfg.iters - run.iteration) * np.mean(durations):.0f} s left")
-        t_last = time.perf_counter()
+        if run.iteration > last["iteration"]:
+            durations.append((time.perf_counter() - last["t"]) / (run.iteration - last["iteration"]))
+            log(f"iteration {run.iteration}/{total} done; about "
+                f"{(total - run.iteration) * np.mean(durations):.0f} s left")
+        last.update(t=time.perf_counter(), iteration=run.iteration)
 
     try:
-        demo_data = rlil.load_demos(cfg, cache_dir)
-        if demo_data:
-            log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
-                                       for d, v in demo_data.items()))
-        run = rlil.algorithm1(cfg, demo_data, run=run, log=log, on_iteration=on_iteration)
+        if is_ppo(cfg):
+            run = ppo_lib.ppo(cfg, run=run, log=log, on_evaluation=on_iteration)
+        else:
+            demo_data = rlil.load_demos(cfg, cache_dir)
+            if demo_data:
+                log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
+                                           for d, v in demo_data.items()))
+            run = rlil.algorithm1(cfg, demo_data, run=run, log=log, on_iteration=on_iteration)
     except BaseException:
         if created and not (out / "checkpoint.pt").exists():
             shutil.rmtree(out, ignore_errors=True)          # nothing half-made is left behind
         raise
     save_rollouts(out, run)
     dist = " ".join(f"{m['distance_m']:.2f}" for m in run.metrics)
-    log(f"done: distance per iteration (m) {dist}; outputs in {out}")
+    log(f"done: distance per {'evaluation' if is_ppo(cfg) else 'iteration'} (m) {dist}; outputs in {out}")
     return run.metrics
 
 
@@ -237,7 +287,7 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
     policy = ModularPolicy(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
     graph = sim2d.design_graph(design)
-    result = rlil.evaluate_policy(policy, graph.code, cfg, rlil.eval_seed(cfg))
+    result = rlil.evaluate_policy(eval_policy(cfg, policy), graph.code, cfg, rlil.eval_seed(cfg))
     d = result.distance_m
     print(f"policy {run_dir} (iteration {ckpt['iteration']}) on {graph.name} ({graph.code}): "
           f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result.flipped.sum())}")
@@ -279,32 +329,16 @@ def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int, panels: st
     return runs
 
 
-def finished_iterations(run_dir: Path) -> int:
-    """Iterations after iteration 0 in a run's metrics.json; -1 when it has none."""
-    try:
-        return len(json.loads((run_dir / "metrics.json").read_text())["iterations"]) - 1
-    except (OSError, ValueError, KeyError):
-        return -1
-
-
-def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd") -> list[str]:
-    """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
-
-    Each run is a normal run directory under `out`, so a sweep resumes (finished
-    runs are reused, interrupted ones continue) and its runs can be spread over
-    machines by any scheduler and merged into one `out` before plotting.
-    Returns the runs that failed or did not finish all `base.iters` iterations,
-    one line each; they are named in the summary and on the plot too.
-    """
+def launch_runs(runs: list[dict], last: int, jobs: int, log, what: str) -> None:
+    """Run every run of a sweep whose metrics.json has not reached iteration `last` (a run's own
+    "last" if it has one) as its own train.py process, `jobs` at a time, continuing interrupted
+    ones with --resume; each run's output goes to its train.log, its exit status to r["returncode"]."""
     import subprocess
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    log = log or rlil.ProgressLog()
     t0 = time.perf_counter()
-    out.mkdir(parents=True, exist_ok=True)
-    runs = figure3_runs(out, base, seeds, jobs, panels)
-    todo = [r for r in runs if finished_iterations(r["dir"]) < base.iters]
-    log(f"figure 3: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
+    todo = [r for r in runs if last_iteration(r["dir"]) < r.get("last", last)]
+    log(f"{what}: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
 
     def launch(run):
         cmd = [sys.executable, str(Path(__file__).resolve()), *run["args"], "--out", str(run["dir"])]
@@ -323,6 +357,37 @@ def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panel
             elapsed = time.perf_counter() - t0
             log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
                 f"{elapsed / done * (len(todo) - done):.0f} s left")
+
+
+def last_iteration(run_dir: Path) -> int:
+    """The iteration of the last row of a run's metrics.json; -1 when it has none."""
+    try:
+        return json.loads((run_dir / "metrics.json").read_text())["iterations"][-1]["iteration"]
+    except (OSError, ValueError, KeyError, IndexError):
+        return -1
+
+
+def finished_iterations(run_dir: Path) -> int:
+    """Iterations after iteration 0 in a run's metrics.json; -1 when it has none."""
+    try:
+        return len(json.loads((run_dir / "metrics.json").read_text())["iterations"]) - 1
+    except (OSError, ValueError, KeyError):
+        return -1
+
+
+def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd") -> list[str]:
+    """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
+
+    Each run is a normal run directory under `out`, so a sweep resumes (finished
+    runs are reused, interrupted ones continue) and its runs can be spread over
+    machines by any scheduler and merged into one `out` before plotting.
+    Returns the runs that failed or did not finish all `base.iters` iterations,
+    one line each; they are named in the summary and on the plot too.
+    """
+    log = log or rlil.ProgressLog()
+    out.mkdir(parents=True, exist_ok=True)
+    runs = figure3_runs(out, base, seeds, jobs, panels)
+    launch_runs(runs, base.iters, jobs, log, "figure 3")
     problems = []
     for r in runs:
         n = finished_iterations(r["dir"])
@@ -460,6 +525,151 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
 
 
 # ----------------------------------------------------------------------------
+# Sample efficiency (not in the paper): Algorithm 1 against PPO per simulator step and per second
+# ----------------------------------------------------------------------------
+SAMPLE_EFFICIENCY = {"hexapod": PANELS["a"][1], "leg_none_wheel": PANELS["d"][1]}   # design: Figure 3's demos
+THRESHOLDS_M = (5.0, 10.0)
+SAMPLE_COLUMNS = ["train", "method", "seed", "iteration", "sim_steps", "seconds", "distance_m"]
+
+
+def sample_efficiency_runs(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int,
+                           jobs: int) -> list[dict]:
+    """One entry per run: hexapod and leg_none_wheel x {RL+IL, RL, PPO} x seeds, with `base`'s and
+    `base_ppo`'s budgets; one torch thread per run when several run at once."""
+    runs = []
+    for design, demos in SAMPLE_EFFICIENCY.items():
+        code = (sim2d.parse_design(design),)
+        for method in ("RL+IL", "RL", "PPO"):
+            for seed in range(seeds):
+                if method == "PPO":
+                    cfg = dataclasses.replace(base_ppo, train=code, seed=seed,
+                                              threads=1 if jobs > 1 else base_ppo.threads)
+                else:
+                    cfg = dataclasses.replace(base, train=code, seed=seed, threads=1 if jobs > 1 else base.threads,
+                                              demos=tuple(sim2d.parse_design(d) for d in demos) if method == "RL+IL" else ())
+                last = ppo_lib.iterations(cfg) if method == "PPO" else cfg.iters
+                runs.append({"train": design, "method": method, "seed": seed, "dir": out / run_name(cfg),
+                             "args": config_args(cfg), "last": last})
+    return runs
+
+
+def sample_efficiency_rows(runs: list[dict]) -> list[dict]:
+    """The CSV rows (SAMPLE_COLUMNS) of every recorded evaluation; seconds are cumulative."""
+    rows = []
+    for r in runs:
+        try:
+            saved = json.loads((r["dir"] / "metrics.json").read_text())
+        except (OSError, ValueError):
+            continue
+        cfg, seconds = config_from_dict(saved["config"]), 0.0
+        for m in saved["iterations"]:
+            seconds += m["seconds"]
+            steps = m["sim_steps"] if "sim_steps" in m else rlil.sim_steps(cfg, m["iteration"])   # runs before sim_steps
+            rows.append({"train": r["train"], "method": r["method"], "seed": r["seed"], "iteration": m["iteration"],
+                         "sim_steps": steps, "seconds": seconds, "distance_m": m["distance_m"]})
+    return rows
+
+
+def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
+    """[(sim_steps, mean seconds, [distance per seed]) per iteration] of one design and method;
+    every seed evaluates at the same iterations and simulator steps."""
+    table = {}
+    for row in rows:
+        if row["train"] == design and row["method"] == method:
+            table.setdefault(row["iteration"], []).append(row)
+    return [(np.mean([r["sim_steps"] for r in table[i]]), np.mean([r["seconds"] for r in table[i]]),
+             [r["distance_m"] for r in table[i]]) for i in sorted(table)]
+
+
+def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = ()) -> str:
+    """Markdown: per design and method, the simulator steps and seconds at which the mean over seeds
+    first reaches 5 m and 10 m in 200 steps, and where each ends."""
+    head = " | ".join(f"{t:g} m: steps | {t:g} m: seconds" for t in THRESHOLDS_M)
+    lines = [f"| design | method | seeds | {head} | final steps | final seconds | final mean (m) | final min-max (m) |",
+             "|---|---|---|" + "---|" * (2 * len(THRESHOLDS_M) + 4)]
+    for design in SAMPLE_EFFICIENCY:
+        for method in ("RL+IL", "RL", "PPO"):
+            curve = mean_curve(rows, design, method)
+            if not curve:
+                lines.append(f"| {design} | {method} | 0 of {seeds} |" + " |" * (2 * len(THRESHOLDS_M) + 4))
+                continue
+            cells = []
+            for t in THRESHOLDS_M:
+                hit = next(((s, sec) for s, sec, d in curve if np.mean(d) >= t), None)
+                cells += [f"{hit[0]:,.0f}", f"{hit[1]:.0f}"] if hit else ["not reached", ""]
+            steps, seconds, final = curve[-1]
+            lines.append(f"| {design} | {method} | {len(final)} of {seeds} | {' | '.join(cells)} | {steps:,.0f} | "
+                         f"{seconds:.0f} | {np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} |")
+    if problems:
+        lines += ["", "Missing or failed runs (left out of the means above):"] + [f"- {p}" for p in problems]
+    return "\n".join(lines) + "\n"
+
+
+def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = ()) -> None:
+    """sample_efficiency.csv and .png: per design, distance against simulator steps and against
+    seconds (both log axes; the untrained PPO policy at 0 steps is left off), mean over seeds as a
+    line, min-max as a band."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def write_csv(p):
+        with open(p, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=SAMPLE_COLUMNS)
+            w.writeheader()
+            w.writerows(rows)
+    atomic_write(out / "sample_efficiency.csv", write_csv)
+    fig, axes = plt.subplots(len(SAMPLE_EFFICIENCY), 2, figsize=(10, 3.8 * len(SAMPLE_EFFICIENCY)), dpi=100,
+                             sharey="row", squeeze=False)
+    for row_axes, (design, demos) in zip(axes, SAMPLE_EFFICIENCY.items()):
+        for method, colour in COLOURS.items():
+            curve = [c for c in mean_curve(rows, design, method) if c[0] > 0]
+            if not curve:
+                continue
+            n = len(curve[-1][2])
+            label = f"{method}" + (f" ({' + '.join(demos)} demos)" if method == "RL+IL" else "") + f", {n} seeds"
+            for ax, k in zip(row_axes, (0, 1)):
+                x = [c[k] for c in curve]
+                ax.plot(x, [np.mean(c[2]) for c in curve], "o-", ms=3, color=colour, label=label)
+                ax.fill_between(x, [min(c[2]) for c in curve], [max(c[2]) for c in curve], color=colour, alpha=0.2)
+        for ax, xlabel in zip(row_axes, ("simulator steps (evaluation excluded)", "wall-clock seconds (one thread)")):
+            ax.set_xscale("log")
+            ax.set_xlabel(xlabel)
+            ax.set_title(design, fontsize=10)
+            ax.grid(alpha=0.3, which="both")
+        row_axes[0].set_ylabel("distance in 200 steps (m)")
+        row_axes[0].legend(fontsize=8, loc="upper left")
+    if problems:
+        fig.text(0.01, 0.01, "missing or failed: " + "; ".join(p.split(" (")[0] for p in problems),
+                 fontsize=8, color="tab:red", wrap=True)
+    fig.tight_layout(rect=(0, 0.04 * bool(problems), 1, 1))
+    atomic_write(out / "sample_efficiency.png", lambda p: fig.savefig(p, format="png"))
+    plt.close(fig)
+
+
+def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int, jobs: int,
+                      log=None) -> list[str]:
+    """Run (or reuse) every run as its own train.py process, then plot, tabulate and summarise
+    (sample_efficiency.png, .csv, .md in `out`).  Returns the runs that failed or did not finish."""
+    log = log or rlil.ProgressLog()
+    out.mkdir(parents=True, exist_ok=True)
+    runs = sample_efficiency_runs(out, base, base_ppo, seeds, jobs)
+    launch_runs(runs, 0, jobs, log, "sample efficiency")
+    problems = [f"{r['train']} {r['method']} seed {r['seed']}: "
+                + (f"exit status {r['returncode']}, " if r.get("returncode", 0) != 0 else "")
+                + f"{max(last_iteration(r['dir']), 0)} of {r['last']} iterations ({r['dir']})"
+                for r in runs if last_iteration(r["dir"]) < r["last"] or r.get("returncode", 0) != 0]
+    rows = sample_efficiency_rows(runs)
+    write_sample_efficiency(out, rows, problems)
+    summary = summarize_sample_efficiency(rows, seeds, problems)
+    atomic_write(out / "sample_efficiency.md", lambda p: Path(p).write_text(summary))
+    print(summary)
+    log(f"wrote {out / 'sample_efficiency.png'}, .csv and .md" + (f"; {len(problems)} runs missing or failed"
+                                                                   if problems else ""))
+    return problems
+
+
+# ----------------------------------------------------------------------------
 # Command line: every Config field is a flag, its comment the help text
 # ----------------------------------------------------------------------------
 def field_help(cls) -> dict[str, str]:
@@ -491,11 +701,29 @@ def config_flags() -> list[tuple[str, str, dataclasses.Field]]:
     return flags
 
 
-def config_args(cfg: rlil.Config) -> list[str]:
-    """The train.py arguments that rebuild `cfg`: --train, --demos, and every field that differs from the default."""
-    default = rlil.Config()
-    args = ["--train", *cfg.train] + (["--demos", *cfg.demos] if cfg.demos else [])
-    for flag, dest, f in config_flags():
+def ppo_flags() -> list[tuple[str, str, dataclasses.Field]]:
+    """(flag, dest, field) for the PPOConfig fields Config lacks; the shared ones (--train, --seed,
+    --threads, --episode-steps, --eval-episodes, --eval-steps, --gnn-*) use Config's flags."""
+    shared = {f.name for f in dataclasses.fields(rlil.Config)}
+    return [("--" + f.name.replace("_", "-"), f.name, f) for f in dataclasses.fields(ppo_lib.PPOConfig)
+            if f.name not in shared]
+
+
+def all_flags(cfg) -> list[tuple[str, str, dataclasses.Field]]:
+    """The flags of `cfg`'s fields: every Config field, or every PPOConfig field."""
+    if not is_ppo(cfg):
+        return config_flags()
+    names = {f.name for f in dataclasses.fields(ppo_lib.PPOConfig)}
+    return [x for x in config_flags() if x[1].startswith("gnn_") or x[1] in names] + ppo_flags()
+
+
+def config_args(cfg) -> list[str]:
+    """The train.py arguments that rebuild `cfg`: --method ppo for PPO, --train, --demos, and every
+    field that differs from the default."""
+    default = type(cfg)()
+    args = (["--method", "ppo"] if is_ppo(cfg) else []) + ["--train", *cfg.train]
+    args += ["--demos", *cfg.demos] if not is_ppo(cfg) and cfg.demos else []
+    for flag, dest, f in all_flags(cfg):
         value = getattr(cfg.gnn, f.name) if dest.startswith("gnn_") else getattr(cfg, f.name)
         base = getattr(default.gnn, f.name) if dest.startswith("gnn_") else getattr(default, f.name)
         if f.name not in ("train", "demos") and value != base:
@@ -504,7 +732,7 @@ def config_args(cfg: rlil.Config) -> list[str]:
 
 
 def build_parser() -> sim2d.CliParser:
-    p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) on the planar world.")
+    p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) and the PPO baseline on the planar world.")
     p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
                    f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget, a class demo of about 12 s)")
     p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>)")
@@ -515,9 +743,15 @@ def build_parser() -> sim2d.CliParser:
     p.add_argument("--gif", help="with --eval: write an animation of the first start")
     p.add_argument("--figure3", action="store_true",
                    help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
-    p.add_argument("--seeds", type=int, default=3, help="with --figure3: seeds per condition (default 3)")
-    p.add_argument("--jobs", type=int, default=2, help="with --figure3: runs in parallel processes (default 2)")
+    p.add_argument("--seeds", type=int, default=3, help="with --figure3 or --sample-efficiency: seeds per condition (default 3)")
+    p.add_argument("--jobs", type=int, default=2, help="with --figure3 or --sample-efficiency: runs in parallel processes (default 2)")
     p.add_argument("--panels", default="abcd", help="with --figure3: which panels, e.g. ad (default abcd)")
+    p.add_argument("--method", choices=("rlil", "ppo"), default="rlil",
+                   help="rlil: Algorithm 1 (RL+IL with --demos, else RL); ppo: the model-free baseline "
+                        "(ppo_minimal.py) on the same modular policy")
+    p.add_argument("--sample-efficiency", action="store_true",
+                   help="run RL, RL+IL (Figure 3's demos) and PPO on hexapod and leg_none_wheel x seeds and plot "
+                        "distance against simulator steps and seconds")
     group = p.add_argument_group("Algorithm 1 (modular_rlil_minimal.Config; defaults: the 5-minute CPU run)")
     default, helps = rlil.Config(), {**field_help(rlil.Config), **field_help(GNNConfig)}
     for flag, dest, f in config_flags():
@@ -527,18 +761,39 @@ def build_parser() -> sim2d.CliParser:
         else:
             kind = dict(type=parse_bool if isinstance(value, bool) else type(value))
         group.add_argument(flag, dest=dest, default=None, help=f"{helps[f.name]} (default {value})", **kind)
+    ppo_default, ppo_helps = ppo_lib.PPOConfig(), field_help(ppo_lib.PPOConfig)
+    group = p.add_argument_group(
+        "PPO, with --method ppo (ppo_minimal.PPOConfig)",
+        "PPO also takes --train (one design), --seed, --threads (default 1), --episode-steps (T, default 200), "
+        "--eval-episodes, --eval-steps and the --gnn-* flags above; --preset tiny is its tests' budget.")
+    for flag, dest, f in ppo_flags():
+        value = getattr(ppo_default, f.name)
+        group.add_argument(flag, dest=dest, default=None, help=f"{ppo_helps[f.name]} (default {value})",
+                           type=parse_bool if isinstance(value, bool) else type(value))
     return p
 
 
-def config_from_args(args) -> rlil.Config:
-    """The preset, overridden by every flag given; checked (UsageError names the bad field)."""
+def config_from_args(args, method: str | None = None, strict: bool = True):
+    """The preset of `method` (default args.method: a Config, or a PPOConfig for "ppo"), overridden
+    by every flag given; checked (UsageError names the bad field).  With `strict`, a flag the
+    method does not use is a UsageError; without it (--sample-efficiency builds both) it is ignored."""
+    method = method or args.method
+    lib = ppo_lib if method == "ppo" else rlil
+    own = {dest for _, dest, _ in (all_flags(ppo_lib.PPOConfig()) if method == "ppo" else config_flags())}
+    every = {dest for _, dest, _ in config_flags() + ppo_flags()}
+    given = {dest: getattr(args, dest) for dest in every if getattr(args, dest) is not None}
+    foreign = sorted(set(given) - own)
+    if strict and foreign:
+        name = "--" + foreign[0].replace("_", "-")
+        raise UsageError(f"{name} is not a setting of {'PPO' if method == 'ppo' else 'Algorithm 1'}"
+                         + ("" if method == "ppo" else " (PPO's flags need --method ppo)"))
+    given = {k: v for k, v in given.items() if k in own}
     try:
-        cfg = rlil.preset(args.preset)
-        given = {dest: getattr(args, dest) for _, dest, _ in config_flags() if getattr(args, dest) is not None}
+        cfg = lib.preset(args.preset)
         gnn = dataclasses.replace(cfg.gnn, **{k[4:]: v for k, v in given.items() if k.startswith("gnn_")})
         cfg = dataclasses.replace(cfg, gnn=gnn, **{k: tuple(v) if isinstance(v, list) else v
                                                    for k, v in given.items() if not k.startswith("gnn_")})
-        cfg = rlil.validate_config(cfg)
+        cfg = lib.validate_config(cfg)
     except ValueError as e:
         raise UsageError(str(e))
     return cfg
@@ -548,6 +803,13 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if args.sample_efficiency:
+            if args.seeds < 1 or args.jobs < 1:
+                raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
+            problems = sample_efficiency(Path(args.out or "runs/sample_efficiency"),
+                                         config_from_args(args, "rlil", strict=False),
+                                         config_from_args(args, "ppo", strict=False), args.seeds, args.jobs)
+            return 1 if problems else 0
         if args.figure3:
             if args.seeds < 1 or args.jobs < 1:
                 raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")

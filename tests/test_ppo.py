@@ -1,0 +1,238 @@
+"""Tests of the PPO baseline (ppo_minimal.py), its command line and the sample-efficiency sweep.
+
+PPO must learn at the tiny budget (the car must drive), its equations must be
+the ones the docstrings write (GAE, the clipped surrogate, the return scale),
+and its runs must behave like Algorithm 1's on the command line (outputs,
+resume, evaluation, bad input).
+"""
+import dataclasses
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import torch
+
+import gnn
+import modular_rlil_minimal as rlil
+import ppo_minimal as ppo
+import sim2d
+import train
+
+
+def tiny(**kw) -> ppo.PPOConfig:
+    return ppo.preset("tiny", **kw)
+
+
+def quiet(*args, **kw):
+    pass
+
+
+def strip_times(metrics):
+    return [{k: v for k, v in row.items() if k != "seconds"} for row in metrics]
+
+
+# ----------------------------------------------------------------------------
+# Learning
+# ----------------------------------------------------------------------------
+def test_ppo_teaches_the_car_to_drive():
+    """The tiny preset on the car: from under 4 m (the untrained policy drives 2.8 m) to at least
+    7 m in 100 steps (measured 9.5 m; wheel top speed 9.9 m) within 20 s.  Fails with the policy-gradient sign flipped (-l_clip -> +l_clip in
+    ppo_loss: the car then drives backwards)."""
+    t0 = time.perf_counter()
+    run = ppo.ppo(ppo.validate_config(tiny(train=("car",))), log=quiet)
+    seconds = time.perf_counter() - t0
+    distance = [m["distance_m"] for m in run.metrics]
+    assert distance[0] < 4.0 and distance[-1] > 7.0, distance
+    assert seconds < 20.0
+    assert run.sim_steps == ppo.iterations(run.cfg) * 8 * 100 >= run.cfg.env_steps
+    assert [m["sim_steps"] for m in run.metrics] == [0, 8_000, 16_000]
+
+
+# ----------------------------------------------------------------------------
+# The equations
+# ----------------------------------------------------------------------------
+def test_gae_is_the_docstrings_worked_example_and_a_flip_cuts_the_bootstrap():
+    r, v = torch.tensor([[1.0, 1.0]]), torch.zeros(1, 2)
+    adv, ret = ppo.gae(r, v, torch.tensor([4.0]), torch.zeros(1, 2), gamma=0.5, lam=0.5)
+    assert adv.tolist() == [[1.75, 3.0]] and ret.tolist() == [[1.75, 3.0]]
+    adv, _ = ppo.gae(r, v, torch.tensor([4.0]), torch.tensor([[0.0, 1.0]]), gamma=0.5, lam=0.5)
+    assert adv.tolist() == [[1.25, 1.0]]                  # flipped at the last step: no V(o_T)
+    # against the definition A_t = sum_l (gamma lam)^l delta_t+l, random numbers, no flip
+    g, lam, T = 0.9, 0.8, 6
+    r, v, last = torch.randn(3, T), torch.randn(3, T), torch.randn(3)
+    nxt = torch.cat([v[:, 1:], last[:, None]], 1)
+    delta = r + g * nxt - v
+    expected = torch.stack([sum((g * lam) ** l * delta[:, t + l] for l in range(T - t)) for t in range(T)], 1)
+    assert torch.allclose(ppo.gae(r, v, last, torch.zeros(3, T), g, lam)[0], expected, atol=1e-5)
+
+
+def test_ppo_loss_is_eqn_9_with_the_clipped_surrogate_of_eqn_7():
+    torch.manual_seed(0)
+    graph, cfg = sim2d.design_graph("car"), tiny(train=("car",), norm_adv=False, vf_coef=0.5, ent_coef=0.1)
+    policy, value = ppo.Memoryless(gnn.ModularPolicy(cfg.gnn)), gnn.ModularValue(cfg.gnn)
+    obs = sim2d.observe(torch.as_tensor(sim2d.sample_initial_states(graph, 4, np.random.default_rng(0)),
+                                        dtype=torch.float32), graph)
+    mean, log_std = policy.distribution(obs, graph)
+    actions = mean + 0.3
+    ratio = torch.tensor([0.5, 0.9, 1.1, 1.5])            # r_t, two of them outside [0.8, 1.2]
+    adv, returns = torch.tensor([1.0, -1.0, 2.0, -2.0]), torch.tensor([0.1, 0.2, 0.3, 0.4])
+    mb = {"obs": obs, "actions": actions, "advantages": adv, "returns": returns,
+          "log_probs": gnn.gaussian_log_prob(mean, log_std, actions).detach() - ratio.log()}
+    loss, stats = ppo.ppo_loss(policy, value, mb, graph, cfg)
+    clipped = ratio.clamp(0.8, 1.2)
+    l_clip = torch.min(ratio * adv, clipped * adv).mean()           # by hand: [0.5, -0.9, 2.2, -3.0]
+    assert l_clip.item() == pytest.approx((0.5 - 0.9 + 2.2 - 3.0) / 4)
+    l_vf = 0.5 * (value(obs, graph) - returns).pow(2).mean()
+    entropy = gnn.gaussian_entropy(log_std).mean()
+    assert loss.item() == pytest.approx((-l_clip + 0.5 * l_vf - 0.1 * entropy).item(), abs=1e-5)
+    assert stats["clip_fraction"] == 0.5
+
+
+def test_return_scale_is_the_std_of_the_discounted_return():
+    scale, r = ppo.ReturnScale(), torch.randn(5, 7)
+    scale.update(r, torch.ones(5, 7, dtype=bool), gamma=0.9)
+    G = np.zeros((5, 7))
+    for t in range(7):
+        G[:, t] = (0.9 * G[:, t - 1] if t else 0) + r[:, t].numpy()
+    assert scale.var == pytest.approx(G.var(), rel=1e-3) and scale.mean == pytest.approx(G.mean(), rel=1e-3)
+    assert torch.allclose(scale(r), r / np.sqrt(G.var()), rtol=1e-3)
+
+
+def test_steps_after_a_flip_are_simulated_but_not_trained_on(monkeypatch):
+    """With the flip threshold at 0.02 rad some robots 'flip' at once: the flip step is a
+    terminal (no bootstrap), the steps after it are invalid."""
+    monkeypatch.setattr(sim2d, "FLIP_PITCH", 0.02)
+    cfg = ppo.validate_config(tiny(train=("hexapod",), robots=6, episode_steps=20))
+    run = ppo.new_run(cfg)
+    batch = ppo.collect_episodes(ppo.Memoryless(run.policy), run.value, cfg, run.rng)
+    flipped = batch.terminal.sum(1)
+    assert flipped.max() == 1 and 0 < flipped.sum() < 6 or flipped.sum() == 6
+    for i in range(6):
+        if flipped[i]:
+            t = int(batch.terminal[i].argmax())
+            assert batch.valid[i, :t + 1].all() and not batch.valid[i, t + 1:].any()
+        else:
+            assert batch.valid[i].all()
+
+
+def test_memoryless_policy_ignores_and_keeps_the_hidden_state():
+    graph = sim2d.design_graph("leg_none_wheel")
+    policy = ppo.Memoryless(gnn.ModularPolicy(gnn.GNNConfig(hidden=16)))
+    obs = sim2d.observe(torch.as_tensor(sim2d.sample_initial_states(graph, 3, np.random.default_rng(1)),
+                                        dtype=torch.float32), graph)
+    h = torch.randn(3, 5, 16)
+    a, h_out = policy.act(obs, graph, h, deterministic=True)
+    assert h_out is h and torch.equal(a, policy.act(obs, graph, torch.zeros_like(h), deterministic=True)[0])
+    ppo.set_initial_std(policy.policy, 0.6)
+    assert torch.allclose(policy.distribution(obs, graph)[1].exp().mean(), torch.tensor(0.6), rtol=0.3)
+
+
+def test_algorithm1_counts_simulator_steps_without_evaluation():
+    cfg = rlil.preset("tiny", train=("car",), demos=("hexapod", "car"))
+    demos, random, policy = 2 * 8 * 40, 8 * 40, 2 * 4 * 40
+    assert [rlil.sim_steps(cfg, i) for i in (0, 1, 2)] == [demos + random, demos + random + policy,
+                                                            demos + random + 2 * policy]
+
+
+# ----------------------------------------------------------------------------
+# The command line
+# ----------------------------------------------------------------------------
+def smoke(**kw) -> ppo.PPOConfig:
+    """Plumbing, not learning: 2 iterations of 4 robots x 20 steps, evaluated after each."""
+    return tiny(**{"train": ("car",), "env_steps": 160, "robots": 4, "episode_steps": 20, "minibatches": 2,
+                   "epochs": 2, "eval_every": 80, "eval_episodes": 2, "eval_steps": 20, **kw})
+
+
+def test_ppo_run_writes_every_output_resumes_and_evaluates(tmp_path):
+    whole = train.train(smoke(), tmp_path / "whole", log=quiet)
+    for name in train.OUTPUTS:
+        assert (tmp_path / "whole" / name).stat().st_size > 0, name
+    saved = json.loads((tmp_path / "whole" / "metrics.json").read_text())
+    assert saved["config"]["method"] == "ppo" and saved["config"]["env_steps"] == 160
+    assert [(r["iteration"], r["sim_steps"]) for r in saved["iterations"]] == [(0, 0), (1, 80), (2, 160)]
+    train.train(smoke(env_steps=80), tmp_path / "split", log=quiet)
+    resumed = train.train(smoke(), tmp_path / "split", resume=True, log=quiet)
+    assert len(resumed) == 3
+    again = train.train(smoke(), tmp_path / "again", log=quiet)
+    assert strip_times(again) == strip_times(whole)                  # same seed, same numbers
+    out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path / "whole"), "--design", "lwnnwl"],
+                         capture_output=True, text=True, check=True)
+    assert np.isfinite(float(out.stdout.strip().splitlines()[-1].split("distance_m=")[1]))
+
+
+def test_resumed_ppo_run_ends_where_an_uninterrupted_one_does(tmp_path, monkeypatch):
+    whole = train.train(smoke(), tmp_path / "whole", log=quiet)
+    calls = []
+
+    def stop_after_first(run):                               # interrupt after the iteration-1 checkpoint
+        calls.append(run.iteration)
+        if run.iteration == 1:
+            raise KeyboardInterrupt
+    real_save = train.save_checkpoint
+    monkeypatch.setattr(train, "save_checkpoint", lambda out, run: (real_save(out, run), stop_after_first(run)))
+    with pytest.raises(KeyboardInterrupt):
+        train.train(smoke(), tmp_path / "split", log=quiet)
+    monkeypatch.setattr(train, "save_checkpoint", real_save)
+    resumed = train.train(smoke(), tmp_path / "split", resume=True, log=quiet)
+    assert calls == [0, 1] and strip_times(resumed) == strip_times(whole)
+
+
+def test_ppo_flags_round_trip_and_bad_input_exits_2(tmp_path, capsys):
+    parser = train.build_parser()
+    cfg = ppo.validate_config(smoke(train=("lnwwnl",), seed=2, gamma=0.95, anneal_lr=False,
+                                    gnn=gnn.GNNConfig(hidden=16)))
+    args = parser.parse_args(train.config_args(cfg) + ["--preset", "default"])
+    assert train.config_from_args(args) == cfg
+    for args in (["--method", "ppo", "--train", "car", "--demos", "hexapod"],
+                 ["--method", "ppo", "--train", "car", "--env-steps", "0"],
+                 ["--method", "ppo", "--train", "car", "hexapod"],
+                 ["--method", "ppo", "--train", "car", "--gamma", "1.5"],
+                 ["--train", "car", "--env-steps", "1000"],
+                 ["--method", "ppo", "--train", "car", "--iters", "3"],
+                 ["--method", "sac", "--train", "car"],
+                 ["--sample-efficiency", "--jobs", "0"]):
+        with pytest.raises(SystemExit) as exit_:
+            train.main(args + ["--out", str(tmp_path / "new")])
+        err = capsys.readouterr().err
+        assert exit_.value.code == 2 and err.count("\n") == 1 and "Traceback" not in err, (args, err)
+    assert not (tmp_path / "new").exists()
+    train.train(smoke(), tmp_path / "run", log=quiet)                  # a resume must keep the config
+    with pytest.raises(train.UsageError, match="only --env-steps may change"):
+        train.train(smoke(gamma=0.9), tmp_path / "run", resume=True, log=quiet)
+    with pytest.raises(train.UsageError, match="different configuration"):
+        train.train(rlil.preset("tiny", train=("car",)), tmp_path / "run", resume=True, log=quiet)
+
+
+# ----------------------------------------------------------------------------
+# The sample-efficiency sweep
+# ----------------------------------------------------------------------------
+def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp_path, monkeypatch):
+    """Finished fake runs are reused (nothing launched) and summarised: steps and seconds to 5 m
+    and 10 m, the final mean and range."""
+    base, base_ppo = rlil.preset("tiny", iters=1), smoke()
+    runs = train.sample_efficiency_runs(tmp_path, base, base_ppo, seeds=2, jobs=2)
+    assert len(runs) == 2 * 3 * 2 and len({r["dir"] for r in runs}) == 12
+    assert {(r["train"], r["method"]) for r in runs} == {(d, m) for d in ("hexapod", "leg_none_wheel")
+                                                         for m in ("RL+IL", "RL", "PPO")}
+    lnw_il = next(r for r in runs if r["train"] == "leg_none_wheel" and r["method"] == "RL+IL")
+    assert lnw_il["args"][lnw_il["args"].index("--demos") + 1:][:2] == ["llllll", "wnwwnw"]
+    for r in runs:
+        cfg = base_ppo if r["method"] == "PPO" else base
+        r["dir"].mkdir(parents=True)
+        rows = [{"iteration": i, "sim_steps": 1000 * (i + 1), "seconds": 10.0,
+                 "distance_m": 4.0 * i + r["seed"] + (6.0 if r["method"] == "PPO" else 0.0)}
+                for i in range(r["last"] + 1)]
+        (r["dir"] / "metrics.json").write_text(json.dumps({"config": train.config_to_dict(cfg), "iterations": rows}))
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: pytest.fail("a finished run was launched"))
+    assert train.sample_efficiency(tmp_path, base, base_ppo, seeds=2, jobs=2, log=quiet) == []
+    lines = (tmp_path / "sample_efficiency.csv").read_text().splitlines()
+    assert lines[0] == "train,method,seed,iteration,sim_steps,seconds,distance_m"
+    assert "hexapod,PPO,1,2,3000,30.0,15.0" in lines
+    table = (tmp_path / "sample_efficiency.md").read_text()
+    # RL: seeds 0 and 1 give means 0.5, 4.5 m: 5 m not reached; PPO: 6.5, 10.5, 14.5 m
+    assert "| hexapod | RL | 2 of 2 | not reached |  | not reached |  | 2,000 | 20 | 4.50 | 4.00 - 5.00 |" in table
+    assert "| hexapod | PPO | 2 of 2 | 1,000 | 10 | 2,000 | 20 | 3,000 | 30 | 14.50 | 14.00 - 15.00 |" in table
+    assert (tmp_path / "sample_efficiency.png").stat().st_size > 10_000
