@@ -35,6 +35,7 @@ Module types a design lacks get no ops at all.
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -131,12 +132,17 @@ def type_net(kind: str, in_dim: int, out_dim: int, hidden: int, recurrent: bool)
     return net
 
 
+@functools.lru_cache(maxsize=None)
+def port_index(graph, kind: str) -> torch.Tensor:
+    """(N_k,) body port of each `kind` node, made once per design graph (it is used every step)."""
+    return torch.tensor(graph.leg_ports if kind == "leg" else graph.wheel_ports)
+
+
 def encode(nets: nn.ModuleDict, x: dict, graph) -> dict:
     """Step 1: z = tanh(W_enc x + p) for every node, (n, N_k, H) per type."""
-    ports = {"leg": graph.leg_ports, "wheel": graph.wheel_ports}
     z = {"body": torch.tanh(nets.body.encode(x["body"]))}                                # (n, 1, H)
     for k in node_types(graph)[1:]:
-        p = nets.body.ports(torch.tensor(ports[k]))                                      # (N_k, H)
+        p = nets.body.ports(port_index(graph, k))                                        # (N_k, H)
         z[k] = torch.tanh(nets[k].encode(x[k]) + p)                                      # (n, N_k, H)
     return z
 
@@ -145,7 +151,8 @@ def propagate(nets: nn.ModuleDict, z: dict, rounds: int) -> dict:
     """Step 2: `rounds` rounds of limbs -> body, then body -> limbs, on the star design graph."""
     limbs = [k for k in z if k != "body"]
     for _ in range(rounds):
-        inbox = sum(nets[k].up(z[k]).sum(1, keepdim=True) for k in limbs)                # (n, 1, H)
+        messages = [nets[k].up(z[k]).sum(1, keepdim=True) for k in limbs]                # (n, 1, H) per type
+        inbox = functools.reduce(torch.add, messages)                                    # (n, 1, H)
         z["body"] = z["body"] + torch.tanh(nets.body.own(z["body"]) + inbox)             # (n, 1, H)
         for k in limbs:
             z[k] = z[k] + torch.tanh(nets[k].own(z[k]) + nets[k].down(z["body"]))        # (n, N_k, H)
