@@ -9,6 +9,7 @@ Sec. III-J "Implementation details" (the policy is recurrent over time).
     python gnn.py            # parameter counts per module type and per design (CPU, 3 s)
     python gnn.py --bench    # + speed of policy updates through model roll-outs, of model fitting, and of
                              # the default run's policy, BC and model steps (CPU, 30 s)
+    python gnn.py --profile policy    # operators of the default run's policy step, by self CPU time
 
 How a design becomes a network
 ------------------------------
@@ -390,8 +391,8 @@ def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_ba
             "model_fit_s": t_fit, "model_fit_transitions_per_s": model_batch / t_fit}
 
 
-def bench_default_run(repeats: int = 3, cfg=None) -> dict:
-    """Best-of-`repeats` seconds of the default run's three kinds of step (train.py's defaults):
+def default_run_steps(cfg=None) -> dict:
+    """The default run's three kinds of step as functions (train.py's defaults):
 
     policy step: L_RL over 64 leg_none_wheel robots x T = 20 steps through the frozen
       model, plus lambda L_IL over 2 demo designs (hexapod, car) x 32 windows x 8 steps,
@@ -442,6 +443,14 @@ def bench_default_run(repeats: int = 3, cfg=None) -> dict:
         loss.backward()
         model_opt.step()
 
+    return {"policy": policy_step, "bc": bc_step, "model": model_step}
+
+
+def bench_default_run(repeats: int = 3) -> dict:
+    """Best-of-`repeats` seconds per call of `default_run_steps`, and the policy step's robot-steps/s."""
+    import modular_rlil_minimal as rlil
+    cfg, steps = rlil.Config(), default_run_steps()
+
     def seconds_per_call(fn, calls):
         fn()                                                                                # warm-up
         times = []
@@ -452,15 +461,28 @@ def bench_default_run(repeats: int = 3, cfg=None) -> dict:
             times.append((time.perf_counter() - t0) / calls)
         return min(times)
 
-    t_policy = seconds_per_call(policy_step, 3)
+    t_policy = seconds_per_call(steps["policy"], 3)
     return {"policy_step_s": t_policy, "policy_robot_steps_per_s": cfg.batch * cfg.horizon / t_policy,
-            "bc_step_s": seconds_per_call(bc_step, 10), "model_step_s": seconds_per_call(model_step, 20)}
+            "bc_step_s": seconds_per_call(steps["bc"], 10), "model_step_s": seconds_per_call(steps["model"], 20)}
+
+
+def profile_default_run(step: str = "policy", calls: int = 3, rows: int = 25) -> str:
+    """torch.profiler's table of the operators of `calls` default-run steps, by self CPU time."""
+    from torch.profiler import ProfilerActivity, profile
+    fn = default_run_steps()[step]
+    fn()                                                                                    # warm-up
+    with profile(activities=[ProfilerActivity.CPU]) as prof:
+        for _ in range(calls):
+            fn()
+    return prof.key_averages().table(sort_by="self_cpu_time_total", row_limit=rows)
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--bench", action="store_true", help="time hexapod roll-outs and model fitting, "
                         "and the default run's policy, BC and model steps")
+    parser.add_argument("--profile", choices=("policy", "bc", "model"),
+                        help="print torch.profiler's operator table of 3 default-run steps of this kind")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
@@ -485,6 +507,8 @@ def main():
               f"{1e3 * d['policy_step_s']:.0f} ms; BC step {1e3 * d['bc_step_s']:.1f} ms; "
               f"model step {1e3 * d['model_step_s']:.1f} ms")
         print(f"default_policy_robot_steps_per_s={d['policy_robot_steps_per_s']:.1f}")
+    if args.profile:
+        print(profile_default_run(args.profile))
 
 
 if __name__ == "__main__":
