@@ -52,7 +52,9 @@ class Config:
     demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain RL (lambda = 0, no pre-training)
     iters: int = 5                   # outer iterations of Algorithm 1 (paper: 5)
     seed: int = 0                    # the one seed everything derives from
-    threads: int = 2                 # torch CPU threads; results depend on it (float sums round differently)
+    threads: int = 1                 # torch CPU threads; results depend on it (float sums round differently).
+                                     # 1: the networks' small tensors gain little from a second thread, and on
+                                     # a machine busy with other work 2 threads were 8x slower (README, Speed)
     # Line 2 / Sec. III-B: random spline actions
     random_episodes: int = 32        # random-action episodes per training design (paper: not stated)
     episode_steps: int = 100         # control steps per collected episode (paper: 100)
