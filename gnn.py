@@ -355,8 +355,8 @@ def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_ba
     states, actions, next_states = random_transitions(design, n_robots=32, steps=100, seed=0)
     policy, model = ModularPolicy(cfg), ModularModel(cfg)
     model.fit_normalization([(graph, states, actions, next_states)])
-    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-3)
-    model_opt = torch.optim.Adam(model.parameters(), lr=1e-3)
+    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-3, foreach=True)
+    model_opt = torch.optim.Adam(model.parameters(), lr=1e-3, foreach=True)
 
     def policy_update():                        # eqn. (RL_loss) through the frozen model, Sec. III-F
         s0 = states[torch.randint(len(states), (batch,))]
@@ -420,8 +420,8 @@ def default_run_steps(cfg=None) -> dict:
 
     demo_data = {d: random_demo(d) for d in cfg.demos}
     buffers = {graph.code: rlil.init_buffer(policy, data, cfg, rng)}
-    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-4)
-    model_opt = torch.optim.Adam(model.parameters(), lr=1e-4)
+    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-4, foreach=True)
+    model_opt = torch.optim.Adam(model.parameters(), lr=1e-4, foreach=True)
 
     def policy_step():
         model.requires_grad_(False)
