@@ -8,7 +8,9 @@ model" (the same modular structure, predicting the change of state) and
 Sec. III-J "Implementation details" (the policy is recurrent over time).
 
     python gnn.py            # parameter counts per module type and per design (CPU, 3 s)
-    python gnn.py --bench    # + speed of policy updates through model roll-outs, of model fitting (CPU, 10 s)
+    python gnn.py --bench    # + speed of policy updates through model roll-outs, of model fitting, and of
+                             # the default run's policy, BC and model steps (CPU, 30 s)
+    python gnn.py --profile policy    # operators of the default run's policy step, by self CPU time
 
 How a design becomes a network
 ------------------------------
@@ -35,6 +37,7 @@ Module types a design lacks get no ops at all.
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -141,12 +144,17 @@ def type_net(kind: str, in_dim: int, out_dim: int, hidden: int, recurrent: bool)
     return net
 
 
+@functools.lru_cache(maxsize=None)
+def port_index(graph, kind: str) -> torch.Tensor:
+    """(N_k,) body port of each `kind` node, made once per design graph (it is used every step)."""
+    return torch.tensor(graph.leg_ports if kind == "leg" else graph.wheel_ports)
+
+
 def encode(nets: nn.ModuleDict, x: dict, graph) -> dict:
     """Step 1: z = tanh(W_enc x + p) for every node, (n, N_k, H) per type."""
-    ports = {"leg": graph.leg_ports, "wheel": graph.wheel_ports}
     z = {"body": torch.tanh(nets.body.encode(x["body"]))}                                # (n, 1, H)
     for k in node_types(graph)[1:]:
-        p = nets.body.ports(torch.tensor(ports[k]))                                      # (N_k, H)
+        p = nets.body.ports(port_index(graph, k))                                        # (N_k, H)
         z[k] = torch.tanh(nets[k].encode(x[k]) + p)                                      # (n, N_k, H)
     return z
 
@@ -155,7 +163,8 @@ def propagate(nets: nn.ModuleDict, z: dict, rounds: int) -> dict:
     """Step 2: `rounds` rounds of limbs -> body, then body -> limbs, on the star design graph."""
     limbs = [k for k in z if k != "body"]
     for _ in range(rounds):
-        inbox = sum(nets[k].up(z[k]).sum(1, keepdim=True) for k in limbs)                # (n, 1, H)
+        messages = [nets[k].up(z[k]).sum(1, keepdim=True) for k in limbs]                # (n, 1, H) per type
+        inbox = functools.reduce(torch.add, messages)                                    # (n, 1, H)
         z["body"] = z["body"] + torch.tanh(nets.body.own(z["body"]) + inbox)             # (n, 1, H)
         for k in limbs:
             z[k] = z[k] + torch.tanh(nets[k].own(z[k]) + nets[k].down(z["body"]))        # (n, N_k, H)
@@ -361,12 +370,15 @@ class ModularModel(nn.Module):
 # ----------------------------------------------------------------------------
 # Roll-outs, benchmark and entry point
 # ----------------------------------------------------------------------------
-def random_transitions(design: str, n_robots: int, steps: int, seed: int):
-    """Sim transitions (s, a, s_next), (n_robots * steps, .) float32, random spline actions (Sec. III-B)."""
+def random_transitions(design: str, n_robots: int, steps: int, seed: int, episodes: bool = False):
+    """Sim transitions (s, a, s_next), (n_robots * steps, .) float32, random spline actions (Sec. III-B);
+    with `episodes`, the episodes instead: states (n_robots, steps + 1, S), actions (n_robots, steps, A)."""
     graph = sim2d.design_graph(design)
     actions = sim2d.random_spline_actions(np.random.default_rng(seed), n_robots, graph.action_dim, steps)
     run = sim2d.simulate(graph, lambda obs, s, t: actions[:, t], n=n_robots, steps=steps, seed=seed)
     states = torch.as_tensor(run.states, dtype=torch.float32)                            # (n, T + 1, S)
+    if episodes:
+        return states, torch.as_tensor(run.actions, dtype=torch.float32)
     return (states[:, :-1].flatten(0, 1), torch.as_tensor(run.actions, dtype=torch.float32).flatten(0, 1),
             states[:, 1:].flatten(0, 1))
 
@@ -380,8 +392,8 @@ def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_ba
     states, actions, next_states = random_transitions(design, n_robots=32, steps=100, seed=0)
     policy, model = ModularPolicy(cfg), ModularModel(cfg)
     model.fit_normalization([(graph, states, actions, next_states)])
-    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-3)
-    model_opt = torch.optim.Adam(model.parameters(), lr=1e-3)
+    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-3, foreach=True)
+    model_opt = torch.optim.Adam(model.parameters(), lr=1e-3, foreach=True)
 
     def policy_update():                        # eqn. (RL_loss) through the frozen model, Sec. III-F
         s0 = states[torch.randint(len(states), (batch,))]
@@ -416,10 +428,99 @@ def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_ba
             "model_fit_s": t_fit, "model_fit_transitions_per_s": model_batch / t_fit}
 
 
+def default_run_steps(cfg=None) -> dict:
+    """The default run's three kinds of step as functions (train.py's defaults):
+
+    policy step: L_RL over 64 leg_none_wheel robots x T = 20 steps through the frozen
+      model, plus lambda L_IL over 2 demo designs (hexapod, car) x 32 windows x 8 steps,
+      backward, clipped Adam step (Algorithm 1 lines 9-21; 120 per iteration);
+    BC step: L_IL alone, backward, Adam (line 1; 1000 before the loop);
+    model step: one-step loss on 512 leg_none_wheel transitions, backward, Adam (line 5).
+    Demonstrations are random observations and actions of the demo designs' shapes:
+    the cost does not depend on the values.
+    """
+    import demos as demo_lib
+    import modular_rlil_minimal as rlil
+    cfg = cfg or rlil.Config(train=("lnwwnl",), demos=("llllll", "wnwwnw"))
+    rng, graph = np.random.default_rng(0), sim2d.design_graph(cfg.train[0])
+    torch.manual_seed(0)
+    data = rlil.Trajectories(graph.code, *random_transitions(graph.code, 16, 50, seed=0, episodes=True))
+    policy, model = ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
+    flat = data.transitions()
+    model.members[0].fit_normalization([(graph, *flat)])
+
+    def random_demo(design):                   # (E, T, ...) random obs and actions of the design's shapes
+        g, (E, T) = sim2d.design_graph(design), (cfg.demo_episodes, cfg.demo_steps)
+        s = rng.standard_normal((E, T, g.state_dim)).astype(np.float32)
+        a = rng.uniform(-1, 1, (E, T, g.action_dim)).astype(np.float32)
+        return demo_lib.DemoData(g.code, sim2d.observe(s, g), a, s, np.zeros(E), np.zeros(E, bool))
+
+    demo_data = {d: random_demo(d) for d in cfg.demos}
+    buffers = {graph.code: rlil.init_buffer(policy, data, cfg, rng)}
+    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-4, foreach=True)
+    model_opt = torch.optim.Adam(model.parameters(), lr=1e-4, foreach=True)
+
+    def policy_step():
+        model.requires_grad_(False)
+        loss_rl = rlil.rl_loss(policy, model, buffers, cfg, rng)
+        loss_il, entropy = rlil.il_loss(policy, demo_data, cfg, rng)
+        loss = rlil.rlil_loss(loss_rl, loss_il + cfg.entropy_weight * entropy, cfg.il_weight)
+        rlil.gradient_step(policy_opt, loss, policy, cfg.grad_clip)
+        model.requires_grad_(True)
+
+    def bc_step():
+        loss, _ = rlil.il_loss(policy, demo_data, cfg, rng)
+        policy_opt.zero_grad()
+        loss.backward()
+        policy_opt.step()
+
+    def model_step():
+        loss = rlil.model_loss(model.members[0], data, flat, cfg.model_batch, 1, rng)
+        model_opt.zero_grad()
+        loss.backward()
+        model_opt.step()
+
+    return {"policy": policy_step, "bc": bc_step, "model": model_step}
+
+
+def bench_default_run(repeats: int = 3) -> dict:
+    """Best-of-`repeats` seconds per call of `default_run_steps`, and the policy step's robot-steps/s."""
+    import modular_rlil_minimal as rlil
+    cfg, steps = rlil.Config(), default_run_steps()
+
+    def seconds_per_call(fn, calls):
+        fn()                                                                                # warm-up
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                fn()
+            times.append((time.perf_counter() - t0) / calls)
+        return min(times)
+
+    t_policy = seconds_per_call(steps["policy"], 3)
+    return {"policy_step_s": t_policy, "policy_robot_steps_per_s": cfg.batch * cfg.horizon / t_policy,
+            "bc_step_s": seconds_per_call(steps["bc"], 10), "model_step_s": seconds_per_call(steps["model"], 20)}
+
+
+def profile_default_run(step: str = "policy", calls: int = 3, rows: int = 25) -> str:
+    """torch.profiler's table of the operators of `calls` default-run steps, by self CPU time."""
+    from torch.profiler import ProfilerActivity, profile
+    fn = default_run_steps()[step]
+    fn()                                                                                    # warm-up
+    with profile(activities=[ProfilerActivity.CPU]) as prof:
+        for _ in range(calls):
+            fn()
+    return prof.key_averages().table(sort_by="self_cpu_time_total", row_limit=rows)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--bench", action="store_true", help="time hexapod roll-outs and model fitting")
-    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
+    parser.add_argument("--bench", action="store_true", help="time hexapod roll-outs and model fitting, "
+                        "and the default run's policy, BC and model steps")
+    parser.add_argument("--profile", choices=("policy", "bc", "model"),
+                        help="print torch.profiler's operator table of 3 default-run steps of this kind")
+    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     policy, model = ModularPolicy(), ModularModel()
@@ -437,6 +538,14 @@ def main():
               f"{1e3 * r['model_fit_s']:.1f} ms")
         print(f"rollout_robot_steps_per_s={r['rollout_robot_steps_per_s']:.1f} "
               f"model_fit_transitions_per_s={r['model_fit_transitions_per_s']:.1f}")
+        d = bench_default_run()
+        print(f"default run (train.py's defaults), best of 3, {args.threads} threads: policy step "
+              f"(64 leg_none_wheel robots x T=20 through the model + IL on 2 x 32 windows x 8 steps) "
+              f"{1e3 * d['policy_step_s']:.0f} ms; BC step {1e3 * d['bc_step_s']:.1f} ms; "
+              f"model step {1e3 * d['model_step_s']:.1f} ms")
+        print(f"default_policy_robot_steps_per_s={d['policy_robot_steps_per_s']:.1f}")
+    if args.profile:
+        print(profile_default_run(args.profile))
 
 
 if __name__ == "__main__":

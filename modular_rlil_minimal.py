@@ -53,7 +53,9 @@ class Config:
     demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain RL (lambda = 0, no pre-training)
     iters: int = 5                   # outer iterations of Algorithm 1 (paper: 5)
     seed: int = 0                    # the one seed everything derives from
-    threads: int = 2                 # torch CPU threads; results depend on it (float sums round differently)
+    threads: int = 1                 # torch CPU threads; results depend on it (float sums round differently).
+                                     # 1: the networks' small tensors gain little from a second thread, and on
+                                     # a machine busy with other work 2 threads were 8x slower (README, Speed)
     # Line 2 / Sec. III-B: random spline actions
     random_episodes: int = 32        # random-action episodes per training design (paper: not stated)
     episode_steps: int = 100         # control steps per collected episode (paper: 100)
@@ -315,7 +317,8 @@ def train_model(models: Ensemble, data: dict[str, Trajectories], cfg: Config, rn
         for model in models.members:
             model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
     steps = cfg.model_steps if first else cfg.finetune_steps
-    opt = torch.optim.Adam(models.parameters(), lr=cfg.model_lr)
+    opt = torch.optim.Adam(models.parameters(), lr=cfg.model_lr, foreach=True)   # foreach: one multi-tensor
+    # update of all parameters instead of a loop over them; the same numbers, less per-step overhead
     losses = []
     for _ in range(steps):
         loss = 0.0
@@ -427,7 +430,7 @@ def rlil_loss(loss_rl, loss_il, il_weight: float):
 def pretrain_bc(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.Generator) -> float:
     """Algorithm 1 line 1: behavioural cloning, minimise L_IL over all demo designs.
     Returns the mean IL loss over the last 10 % of the steps."""
-    opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr)
+    opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr, foreach=True)
     losses = []
     for _ in range(cfg.bc_steps):
         loss, _ = il_loss(policy, demo_data, cfg, rng)
@@ -548,7 +551,7 @@ def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Traj
     buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}                # line 7
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
     anchor = copy.deepcopy(policy).requires_grad_(False) if cfg.trust_region else None
-    opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr)
+    opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr, foreach=True)
     lr_rule = AdaptiveLearningRate(policy, opt, validation_reward(policy, model, val_states, cfg), cfg.lr_drop)
     rl_values, il_values = [], []
     for k in range(1, cfg.policy_steps + 1):                                                       # line 8

@@ -108,6 +108,12 @@ ROBOT_CAT, GROUND_CAT = 0b01, 0b10   # collision categories: limbs touch only gr
 OBS_NOISE_BODY = (0.005, 0.01, 0.05)      # y (m), pitch (rad), pitch rate (rad/s)
 OBS_NOISE_LEG = (0.01, 0.01, 0.05, 0.05)  # joint angles (rad), joint rates (rad/s)
 OBS_NOISE_WHEEL = (0.05,)                 # wheel rate (rad/s)
+OBS_NOISE_STD = {"body": np.array(OBS_NOISE_BODY), "leg": np.array(OBS_NOISE_LEG),
+                 "wheel": np.array(OBS_NOISE_WHEEL)}
+OBS_NOISE_STD_TORCH = {k: torch.tensor(v, dtype=torch.float32)     # made once: `observe` runs
+                       for k, v in OBS_NOISE_STD.items()}             # every model step
+BODY_OBS_INDEX = [1, 2, 5]                # y, pitch, pitch_rate: the body state entries O keeps
+BODY_OBS_INDEX_TORCH = torch.tensor(BODY_OBS_INDEX)
 
 # Perturbation of initial states around the nominal pose (half-widths of uniform draws).
 INIT_JOINT = 0.15          # rad, leg joint angles
@@ -254,12 +260,12 @@ def observe(s, graph: DesignGraph, noise: dict | None = None) -> dict:
     `noise` holds standard-normal draws shaped like the result (or None for a
     noiseless observation); they are scaled by OBS_NOISE_* here.
     """
-    parts = split_state(s, graph)
-    body = parts["body"][..., [1, 2, 5]]                 # (..., 3) y, pitch, pitch_rate
-    obs = {"body": body, "leg": parts["leg"], "wheel": parts["wheel"]}
+    parts, torch_in = split_state(s, graph), isinstance(s, torch.Tensor)
+    index = BODY_OBS_INDEX_TORCH if torch_in else BODY_OBS_INDEX
+    obs = {"body": parts["body"][..., index],            # (..., 3) y, pitch, pitch_rate
+           "leg": parts["leg"], "wheel": parts["wheel"]}
     if noise is not None:
-        like = torch.as_tensor if isinstance(s, torch.Tensor) else np.asarray
-        std = {"body": like(OBS_NOISE_BODY), "leg": like(OBS_NOISE_LEG), "wheel": like(OBS_NOISE_WHEEL)}
+        std = OBS_NOISE_STD_TORCH if torch_in else OBS_NOISE_STD
         obs = {k: v + std[k] * noise[k] for k, v in obs.items()}
     return obs
 

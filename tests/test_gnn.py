@@ -121,6 +121,12 @@ def test_body_tells_front_from_rear_leg():
                               policy(obs, rear, policy.initial_hidden(3, rear))[0])
 
 
+def test_port_index_is_each_limbs_body_port_and_made_once():
+    graph = sim2d.design_graph("lnwwnl")
+    assert gnn.port_index(graph, "leg").tolist() == [0, 5] and gnn.port_index(graph, "wheel").tolist() == [2, 3]
+    assert gnn.port_index(graph, "leg") is gnn.port_index(sim2d.design_graph("leg_none_wheel"), "leg")
+
+
 def test_batch_equals_one_robot_at_a_time():
     policy, model = build()
     graph, n = sim2d.design_graph("leg_leg_wheel"), 6

@@ -121,6 +121,23 @@ def test_observation_has_no_x_and_no_linear_velocity():
     assert not np.array_equal(sim2d.observe(s3, g)["body"], obs["body"])
 
 
+def test_observe_gives_the_same_numbers_on_torch_tensors_and_numpy_arrays():
+    """The torch path (model roll-outs) uses index and noise-std tensors made once; the numpy
+    path (the simulator) plain arrays: both are the same function O."""
+    g = sim2d.design_graph("leg_none_wheel")
+    rng = np.random.default_rng(0)
+    s = sim2d.sample_initial_states(g, 5, rng).astype(np.float32)
+    noise = sim2d.obs_noise_like(s, g, rng)
+    for n in (None, noise):
+        on_numpy = sim2d.observe(s, g, n)
+        on_torch = sim2d.observe(torch.tensor(s), g, None if n is None else {k: torch.tensor(v, dtype=torch.float32)
+                                                                             for k, v in n.items()})
+        for k in on_numpy:
+            assert on_torch[k].dtype == torch.float32
+            assert np.allclose(on_torch[k].numpy(), on_numpy[k], atol=1e-6)
+    assert np.array_equal(sim2d.observe(s, g)["body"], s[:, [1, 2, 5]])
+
+
 def test_batched_world_matches_single_worlds():
     g = sim2d.design_graph("hexapod")
     starts = sim2d.sample_initial_states(g, 3, np.random.default_rng(7))
