@@ -383,6 +383,18 @@ def random_transitions(design: str, n_robots: int, steps: int, seed: int, episod
             states[:, 1:].flatten(0, 1))
 
 
+def best_seconds_per_call(fn, calls: int, repeats: int) -> float:
+    """Seconds per call of fn(): one warm-up call, then the best of `repeats` timings of `calls` calls."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        times.append((time.perf_counter() - t0) / calls)
+    return min(times)
+
+
 def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_batch: int = 512,
           repeats: int = 5, cfg: GNNConfig = GNNConfig()) -> dict:
     """Best-of-`repeats` speed of a policy update through model roll-outs, and of a model update."""
@@ -411,14 +423,7 @@ def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_ba
         model_opt.step()
 
     def seconds_per_call(fn, calls):
-        fn()                                                                                # warm-up
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            for _ in range(calls):
-                fn()
-            times.append((time.perf_counter() - t0) / calls)
-        return min(times)
+        return best_seconds_per_call(fn, calls, repeats)
 
     model.requires_grad_(False)                 # frozen while the policy trains; gradients flow through it
     t_rollout = seconds_per_call(policy_update, 2)
@@ -489,14 +494,7 @@ def bench_default_run(repeats: int = 3) -> dict:
     cfg, steps = rlil.Config(), default_run_steps()
 
     def seconds_per_call(fn, calls):
-        fn()                                                                                # warm-up
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            for _ in range(calls):
-                fn()
-            times.append((time.perf_counter() - t0) / calls)
-        return min(times)
+        return best_seconds_per_call(fn, calls, repeats)
 
     t_policy = seconds_per_call(steps["policy"], 3)
     return {"policy_step_s": t_policy, "policy_robot_steps_per_s": cfg.batch * cfg.horizon / t_policy,

@@ -481,18 +481,23 @@ def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[s
     return "\n".join(lines) + "\n"
 
 
+def write_rows_csv(path: Path, columns: list[str], rows: list[dict]) -> None:
+    """A CSV with a header row of `columns` and one line per dict, written atomically."""
+    def write(p):
+        with open(p, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=columns)
+            w.writeheader()
+            w.writerows(rows)
+    atomic_write(path, write)
+
+
 def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = (), panels: str = "abcd") -> None:
     """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    def write_csv(p):
-        with open(p, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=FIGURE3_COLUMNS)
-            w.writeheader()
-            w.writerows(rows)
-    atomic_write(out / "figure3.csv", write_csv)
+    write_rows_csv(out / "figure3.csv", FIGURE3_COLUMNS, rows)
     shown = [(p, v) for p, v in PANELS.items() if p in panels]
     fig, axes = plt.subplots(1, len(shown), figsize=(4 * len(shown), 3.8 + 0.18 * len(problems)), dpi=100,
                              sharey=True, squeeze=False)
@@ -613,12 +618,7 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    def write_csv(p):
-        with open(p, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=SAMPLE_COLUMNS)
-            w.writeheader()
-            w.writerows(rows)
-    atomic_write(out / "sample_efficiency.csv", write_csv)
+    write_rows_csv(out / "sample_efficiency.csv", SAMPLE_COLUMNS, rows)
     fig, axes = plt.subplots(len(SAMPLE_EFFICIENCY), 2, figsize=(10, 3.8 * len(SAMPLE_EFFICIENCY)), dpi=100,
                              sharey="row", squeeze=False)
     for row_axes, (design, demos) in zip(axes, SAMPLE_EFFICIENCY.items()):
