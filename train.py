@@ -491,6 +491,17 @@ def write_rows_csv(path: Path, columns: list[str], rows: list[dict]) -> None:
     atomic_write(path, write)
 
 
+def save_sweep_plot(fig, path: Path, problems: list[str]) -> None:
+    """Save a sweep's figure atomically (missing or failed runs named along its foot) and close it."""
+    import matplotlib.pyplot as plt
+    if problems:
+        fig.text(0.01, 0.01, "missing or failed: " + "; ".join(p.split(" (")[0] for p in problems),
+                 fontsize=8, color="tab:red", wrap=True)
+    fig.tight_layout(rect=(0, 0.04 * bool(problems), 1, 1))
+    atomic_write(path, lambda p: fig.savefig(p, format="png"))
+    plt.close(fig)
+
+
 def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = (), panels: str = "abcd") -> None:
     """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
     import matplotlib
@@ -521,12 +532,7 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
     axes[0].set_ylabel("distance in 200 steps (m)")
-    if problems:
-        fig.text(0.01, 0.01, "missing or failed: " + "; ".join(p.split(" (")[0] for p in problems),
-                 fontsize=8, color="tab:red", wrap=True)
-    fig.tight_layout(rect=(0, 0.04 * bool(problems), 1, 1))
-    atomic_write(out / "figure3.png", lambda p: fig.savefig(p, format="png"))
-    plt.close(fig)
+    save_sweep_plot(fig, out / "figure3.png", problems)
 
 
 # ----------------------------------------------------------------------------
@@ -639,12 +645,7 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
             ax.grid(alpha=0.3, which="both")
         row_axes[0].set_ylabel("distance in 200 steps (m)")
         row_axes[0].legend(fontsize=8, loc="upper left")
-    if problems:
-        fig.text(0.01, 0.01, "missing or failed: " + "; ".join(p.split(" (")[0] for p in problems),
-                 fontsize=8, color="tab:red", wrap=True)
-    fig.tight_layout(rect=(0, 0.04 * bool(problems), 1, 1))
-    atomic_write(out / "sample_efficiency.png", lambda p: fig.savefig(p, format="png"))
-    plt.close(fig)
+    save_sweep_plot(fig, out / "sample_efficiency.png", problems)
 
 
 def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int, jobs: int,
