@@ -619,10 +619,11 @@ def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str
 def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = ()) -> None:
     """sample_efficiency.csv and .png: per design, distance against simulator steps and against
     seconds (both log axes; the untrained PPO policy at 0 steps is left off), mean over seeds as a
-    line, min-max as a band."""
+    line, min-max as a band, the summary's thresholds as dotted lines."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib import ticker
 
     write_rows_csv(out / "sample_efficiency.csv", SAMPLE_COLUMNS, rows)
     fig, axes = plt.subplots(len(SAMPLE_EFFICIENCY), 2, figsize=(10, 3.8 * len(SAMPLE_EFFICIENCY)), dpi=100,
@@ -633,13 +634,19 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
             if not curve:
                 continue
             n = len(curve[-1][2])
-            label = f"{method}" + (f" ({' + '.join(demos)} demos)" if method == "RL+IL" else "") + f", {n} seeds"
+            label = (f"{method}" + (f" ({' + '.join(demos)} demos)" if method == "RL+IL" else "")
+                     + f", {n} seed{'s' * (n > 1)}")
             for ax, k in zip(row_axes, (0, 1)):
                 x = [c[k] for c in curve]
                 ax.plot(x, [np.mean(c[2]) for c in curve], "o-", ms=3, color=colour, label=label)
                 ax.fill_between(x, [min(c[2]) for c in curve], [max(c[2]) for c in curve], color=colour, alpha=0.2)
-        for ax, xlabel in zip(row_axes, ("simulator steps (evaluation excluded)", "wall-clock seconds (one thread)")):
+        for ax, xlabel, unit in zip(row_axes, ("simulator steps (evaluation excluded)",
+                                               "wall-clock seconds (one thread, evaluation included)"), ("", " s")):
             ax.set_xscale("log")
+            ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _, u=unit: f"{v:,.0f}{u}" if v >= 1 else f"{v:g}{u}"))
+            ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+            for t in THRESHOLDS_M:                # the summary table's thresholds
+                ax.axhline(t, color="grey", lw=0.8, ls=":")
             ax.set_xlabel(xlabel)
             ax.set_title(design, fontsize=10)
             ax.grid(alpha=0.3, which="both")
