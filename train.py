@@ -626,7 +626,7 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
     from matplotlib import ticker
 
     write_rows_csv(out / "sample_efficiency.csv", SAMPLE_COLUMNS, rows)
-    fig, axes = plt.subplots(len(SAMPLE_EFFICIENCY), 2, figsize=(10, 3.8 * len(SAMPLE_EFFICIENCY)), dpi=100,
+    fig, axes = plt.subplots(len(SAMPLE_EFFICIENCY), 2, figsize=(13, 3.8 * len(SAMPLE_EFFICIENCY)), dpi=100,
                              sharey="row", squeeze=False)
     for row_axes, (design, demos) in zip(axes, SAMPLE_EFFICIENCY.items()):
         for method, colour in COLOURS.items():
@@ -651,7 +651,7 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
             ax.set_title(design, fontsize=10)
             ax.grid(alpha=0.3, which="both")
         row_axes[0].set_ylabel("distance in 200 steps (m)")
-        row_axes[0].legend(fontsize=8, loc="upper left")
+        row_axes[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1))    # beside the row
     save_sweep_plot(fig, out / "sample_efficiency.png", problems)
 
 
