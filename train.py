@@ -643,7 +643,8 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
         for ax, xlabel, unit in zip(row_axes, ("simulator steps (evaluation excluded)",
                                                "wall-clock seconds (one thread, evaluation included)"), ("", " s")):
             ax.set_xscale("log")
-            ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _, u=unit: f"{v:,.0f}{u}" if v >= 1 else f"{v:g}{u}"))
+            ax.xaxis.set_major_formatter(ticker.FuncFormatter(                 # 1,000 and 100 s, not 10^3
+                lambda v, _, u=unit: f"{v:,.0f}{u}" if v >= 1 else f"{v:g}{u}"))
             ax.xaxis.set_minor_formatter(ticker.NullFormatter())
             for t in THRESHOLDS_M:                # the summary table's thresholds
                 ax.axhline(t, color="grey", lw=0.8, ls=":")
