@@ -30,9 +30,15 @@ design, so the parameter count does not depend on the design.  One step:
      first updates the node's memory h <- GRU(z, h), then decodes a Gaussian
      over the node's joint-velocity commands.
 
-A batch holds many robots of one design, so each step above is one tensor op
-per module type on (robots, nodes of that type, features): no loop over robots.
-Module types a design lacks get no ops at all.
+A batch holds many robots of one design.  `wire` gathers each per-type layer
+along the design's node list into a (nodes, in, out) stack, once per roll-out
+or batch of windows, so each layer above is one batched matrix product
+(torch.baddbmm) over (nodes, robots, features) for all module types at once:
+no loop over robots, nodes or types.  Types whose inputs or outputs are
+narrower are zero-padded to the widest.  Gathering is differentiable, so the
+parameters stay one set per type (`nets`), and module types a design lacks
+get no gradient.  tests/test_gnn.py checks the wired network against each
+node's own type's modules applied one node at a time.
 """
 from __future__ import annotations
 
@@ -126,7 +132,7 @@ def count_parameters(module: nn.Module) -> int:
 
 
 # ----------------------------------------------------------------------------
-# Per-type networks and message passing on the design graph
+# Per-type networks, and the same layers wired along one design's nodes
 # ----------------------------------------------------------------------------
 def type_net(kind: str, in_dim: int, out_dim: int, hidden: int, recurrent: bool) -> nn.ModuleDict:
     """The layers of one module type; every module of that type, in every design, uses them."""
@@ -144,36 +150,164 @@ def type_net(kind: str, in_dim: int, out_dim: int, hidden: int, recurrent: bool)
     return net
 
 
+@dataclass(frozen=True)
+class NodeIndex:
+    """Index tensors of one design graph, made once (`node_index`), used at every step."""
+
+    kinds: tuple            # module types present, in node order: ("body", "leg"?, "wheel"?)
+    type_of: torch.Tensor   # (N,) position in `kinds` of each node's type
+    limb_type: torch.Tensor  # (N - 1,) position in kinds[1:] of each limb's type
+    ports: torch.Tensor     # (N - 1,) body port each limb is plugged into
+
+
 @functools.lru_cache(maxsize=None)
-def port_index(graph, kind: str) -> torch.Tensor:
-    """(N_k,) body port of each `kind` node, made once per design graph (it is used every step)."""
-    return torch.tensor(graph.leg_ports if kind == "leg" else graph.wheel_ports)
+def node_index(graph) -> NodeIndex:
+    kinds = tuple(node_types(graph))
+    type_of = torch.tensor([kinds.index(kind) for kind, _ in graph.nodes])
+    return NodeIndex(kinds, type_of, type_of[1:] - 1, torch.tensor([p for _, p in graph.nodes[1:]]))
 
 
-def encode(nets: nn.ModuleDict, x: dict, graph) -> dict:
-    """Step 1: z = tanh(W_enc x + p) for every node, (n, N_k, H) per type."""
-    z = {"body": torch.tanh(nets.body.encode(x["body"]))}                                # (n, 1, H)
-    for k in node_types(graph)[1:]:
-        p = nets.body.ports(port_index(graph, k))                                        # (N_k, H)
-        z[k] = torch.tanh(nets[k].encode(x[k]) + p)                                      # (n, N_k, H)
+def pad_to(x, size: int, dim: int = -1, value: float = 0.0) -> torch.Tensor:
+    """x with `value` appended along its last dimension (dim=-1) or its rows (dim=0) up to `size`."""
+    extra = size - x.shape[dim]
+    if extra == 0:
+        return x
+    return nn.functional.pad(x, (0, extra) if dim == -1 or x.dim() == 1 else (0, 0, 0, extra), value=value)
+
+
+def per_node(tensors: list, type_index: torch.Tensor) -> torch.Tensor:
+    """[one tensor per type] -> (nodes, ...): each node gets its type's tensor (a differentiable gather)."""
+    return torch.stack(tensors)[type_index]
+
+
+def per_node_linear(layers: list, type_index, weight=None, bias=None):
+    """Weights (nodes, in, out) and biases (nodes, 1, out) for torch.baddbmm: each node its type's layer.
+
+    weight(layer) / bias(layer) return the (out, in) / (out,) to stack (default: the layer's own),
+    so types with different input or output sizes can be zero-padded to one shape.
+    """
+    w = per_node([weight(l) if weight else l.weight for l in layers], type_index).transpose(1, 2)
+    if bias is None and layers[0].bias is None:
+        return w, None
+    return w, per_node([bias(l) if bias else l.bias for l in layers], type_index)[:, None]
+
+
+@dataclass
+class Wired:
+    """A modular network's layers gathered along one design's nodes (node 0 the body, then the limbs).
+
+    Each per-type layer becomes a (nodes, in, out) stack, so one torch.baddbmm
+    applies every node's own type's layer at once; node tensors are
+    node-major, (nodes, robots, features).  Gathering is differentiable:
+    gradients reach the per-type parameters.  Made once per roll-out or batch
+    of windows, since the weights do not change within one.
+    """
+
+    encode: tuple            # W_enc (N, in, H), b_enc + port vector p (N, 1, H)
+    own: tuple               # W_own (N, H, H), b_own (N, 1, H)
+    up: torch.Tensor         # W_up (N - 1, H, H), limbs only
+    down: torch.Tensor       # W_down (N - 1, H, H), limbs only
+    head: tuple              # W_head (N or N - 1, H, out), b_head (., 1, out)
+    gru: tuple | None        # W_ih (N, H, 3H), b_ih, W_hh (N, H, 3H), b_hh, for the policy's memory
+    rounds: int
+
+
+def wire(nets: nn.ModuleDict, graph, rounds: int, encode_weight=None, head_weight=None, head_bias=None,
+         limb_heads: bool = False) -> Wired:
+    """Gather `nets`' per-type layers along the design's nodes (see `Wired`).  encode_weight /
+    head_weight / head_bias pad a type's layer to the common shape; limb_heads: only limbs have heads."""
+    ix = node_index(graph)
+    nodes = [nets[k] for k in ix.kinds]
+    limbs = nodes[1:]
+    w_enc, b_enc = per_node_linear([n.encode for n in nodes], ix.type_of, weight=encode_weight)
+    ports = torch.cat([torch.zeros(1, w_enc.shape[-1]), nets.body.ports(ix.ports)])         # (N, H), body: 0
+    heads = limbs if limb_heads else nodes
+    gru = None
+    if "gru" in nets.body:
+        cells = [n.gru for n in nodes]
+        gru = (per_node([c.weight_ih for c in cells], ix.type_of).transpose(1, 2),
+               per_node([c.bias_ih for c in cells], ix.type_of)[:, None],
+               per_node([c.weight_hh for c in cells], ix.type_of).transpose(1, 2),
+               per_node([c.bias_hh for c in cells], ix.type_of)[:, None])
+    return Wired(encode=(w_enc, b_enc + ports[:, None]),
+                 own=per_node_linear([n.own for n in nodes], ix.type_of),
+                 up=per_node_linear([n.up for n in limbs], ix.limb_type)[0],
+                 down=per_node_linear([n.down for n in limbs], ix.limb_type)[0],
+                 head=per_node_linear([n.head for n in heads], ix.limb_type if limb_heads else ix.type_of,
+                                      head_weight, head_bias),
+                 gru=gru, rounds=rounds)
+
+
+def encode(w: Wired, x) -> torch.Tensor:
+    """Step 1: z = tanh(W_enc x + p) for every node: x (N, n, in) -> z (N, n, H)."""
+    return torch.tanh(torch.baddbmm(w.encode[1], x, w.encode[0]))
+
+
+def propagate(w: Wired, z) -> torch.Tensor:
+    """Step 2: `rounds` rounds of limbs -> body, then body -> limbs, on the star design graph: (N, n, H)."""
+    for _ in range(w.rounds):
+        body, limbs = z.split([1, len(z) - 1])                                             # (1, n, H), (N - 1, n, H)
+        own_body, own_limbs = torch.baddbmm(w.own[1], z, w.own[0]).split([1, len(z) - 1])
+        inbox = torch.bmm(limbs, w.up).sum(0, keepdim=True)                                # (1, n, H)
+        body = body + torch.tanh(own_body + inbox)                                         # (1, n, H)
+        down = torch.bmm(body.expand(len(limbs), -1, -1), w.down)                          # (N - 1, n, H)
+        z = torch.cat([body, limbs + torch.tanh(own_limbs + down)])                        # (N, n, H)
     return z
 
 
-def propagate(nets: nn.ModuleDict, z: dict, rounds: int) -> dict:
-    """Step 2: `rounds` rounds of limbs -> body, then body -> limbs, on the star design graph."""
-    limbs = [k for k in z if k != "body"]
-    for _ in range(rounds):
-        messages = [nets[k].up(z[k]).sum(1, keepdim=True) for k in limbs]                # (n, 1, H) per type
-        inbox = functools.reduce(torch.add, messages)                                    # (n, 1, H)
-        z["body"] = z["body"] + torch.tanh(nets.body.own(z["body"]) + inbox)             # (n, 1, H)
-        for k in limbs:
-            z[k] = z[k] + torch.tanh(nets[k].own(z[k]) + nets[k].down(z["body"]))        # (n, N_k, H)
-    return z
+def gru(w: Wired, z, h) -> torch.Tensor:
+    """Step 3 (policy): every node's memory h <- GRUCell(z, h) (torch.nn.GRUCell's gates r, u, n): (N, n, H)."""
+    w_ih, b_ih, w_hh, b_hh = w.gru
+    H = h.shape[-1]
+    gi_ru, gi_n = torch.baddbmm(b_ih, z, w_ih).split([2 * H, H], -1)                       # (N, n, 2H), (N, n, H)
+    gh_ru, gh_n = torch.baddbmm(b_hh, h, w_hh).split([2 * H, H], -1)
+    r, u = torch.sigmoid(gi_ru + gh_ru).chunk(2, -1)                                        # reset, update gates
+    c = torch.tanh(gi_n + r * gh_n)                                                          # candidate
+    return c + u * (h - c)                                                                   # (1 - u) c + u h
+
+
+def head(w: Wired, z) -> torch.Tensor:
+    """Step 3: each node's output from its state: (N, n, H) -> (N, n, out)."""
+    return torch.baddbmm(w.head[1], z, w.head[0])
+
+
+def nodes_first(parts: dict, kinds, width: int) -> torch.Tensor:
+    """{"body": (n, F_b), "leg": (n, L, F_l), "wheel": (n, W, F_w)} -> (N, n, width), zero-padded."""
+    x = [parts["body"][:, None]] + [parts[k] for k in kinds[1:]]
+    return torch.cat([pad_to(p, width) for p in x], 1).transpose(0, 1)
+
+
+@functools.lru_cache(maxsize=None)
+def flat_index(graph, widths: tuple, stride: int, limbs_only: bool = False) -> torch.Tensor:
+    """Where each entry of sim2d's flat layout (body, legs, wheels; `widths` per type of TYPES) sits
+    in a robot's node outputs laid out `stride` apart: an index into (n, nodes x stride)."""
+    nodes = [k for k, _ in graph.nodes][1 if limbs_only else 0:]
+    return torch.tensor([i * stride + j for i, k in enumerate(nodes) for j in range(widths[TYPES.index(k)])])
+
+
+def to_flat(y, index) -> torch.Tensor:
+    """Node-major outputs (N, n, F) -> (n, entries) in sim2d's flat layout, by a `flat_index`."""
+    return y.transpose(0, 1).reshape(y.shape[1], -1)[:, index]
 
 
 # ----------------------------------------------------------------------------
 # The modular policy pi_theta(a | o, d), recurrent over time
 # ----------------------------------------------------------------------------
+OBS_WIDTH = max(BODY_OBS_DIM, LEG_OBS_DIM, WHEEL_OBS_DIM)     # node observations, zero-padded to this
+ACT_WIDTH = max(LEG_ACT_DIM, WHEEL_ACT_DIM)                   # limb actions, likewise
+
+
+@functools.lru_cache(maxsize=None)
+def node_obs_scale(graph) -> torch.Tensor:
+    """(N, 1, OBS_WIDTH): OBS_SCALE of each node's type, zero-padded like `nodes_first`."""
+    return torch.stack([pad_to(OBS_SCALE[k], OBS_WIDTH) for k, _ in graph.nodes])[:, None]
+
+
+def sample_action(mean, log_std, deterministic: bool):
+    """a ~ N(mean, exp(log_std)^2), reparameterised (or the mean)."""
+    return mean if deterministic else mean + torch.exp(log_std) * torch.randn_like(mean)
+
+
 class ModularPolicy(nn.Module):
     """pi_theta(a | o, d): a Gaussian over each joint's normalised velocity command.
 
@@ -184,6 +318,9 @@ class ModularPolicy(nn.Module):
     input is its scaled observation and its memory, so messages carry memory.
     The log-std is state-dependent: a second output per joint, squashed into
     [log_std_min, log_std_max] by a sigmoid (about mid-way at initialisation).
+
+    `wire(graph)` gathers the layers along a design's nodes once, for many
+    steps (`PolicyOnDesign`); `forward` and `act` wire for one step.
     """
 
     def __init__(self, cfg: GNNConfig = GNNConfig()):
@@ -199,20 +336,13 @@ class ModularPolicy(nn.Module):
         """h_0 = 0: (n, 1 + n_legs + n_wheels, hidden), node 0 the body, then the legs, then the wheels."""
         return torch.zeros(n, 1 + graph.n_legs + graph.n_wheels, self.cfg.hidden)
 
+    def wire(self, graph) -> "PolicyOnDesign":
+        return PolicyOnDesign(self, graph)
+
     def forward(self, obs: dict, graph, hidden):
         """One control step from `observe`'s dict of tensors: mean (n, A), log_std (n, A), next hidden."""
-        kinds, h = node_types(graph), split_nodes(hidden, graph)
-        o = {"body": obs["body"][:, None], "leg": obs["leg"], "wheel": obs["wheel"]}        # (n, N_k, O_k)
-        x = {k: torch.cat([o[k] * OBS_SCALE[k], h[k]], -1) for k in kinds}                 # (n, N_k, O_k + H)
-        z = propagate(self.nets, encode(self.nets, x, graph), self.cfg.rounds)
-        h = {k: self.nets[k].gru(z[k].flatten(0, 1), h[k].flatten(0, 1)).view_as(z[k])
-             for k in kinds}                                                                # (n, N_k, H)
-        heads = [self.nets[k].head(h[k]).chunk(2, -1) for k in kinds[1:]]                   # (n, N_k, A_k) x 2
-        mean = join_nodes([m for m, _ in heads])                                            # (n, A)
-        raw = join_nodes([r for _, r in heads])                                             # (n, A)
-        lo, hi = self.cfg.log_std_min, self.cfg.log_std_max
-        log_std = lo + (hi - lo) * torch.sigmoid(raw)                                       # (n, A) in [lo, hi]
-        return mean, log_std, torch.cat([h[k] for k in kinds], 1)                           # (n, 1 + L + W, H)
+        mean, log_std, h = self.wire(graph).step(obs, hidden.transpose(0, 1))
+        return mean, log_std, h.transpose(0, 1)                                             # (n, 1 + L + W, H)
 
     def act(self, obs: dict, graph, hidden, deterministic: bool = False):
         """a_t ~ pi_theta(. | o_<=t), reparameterised (or the mean), and the next hidden.
@@ -220,9 +350,7 @@ class ModularPolicy(nn.Module):
         Not clipped: the world clips actions to [-1, 1], and so does the model.
         """
         mean, log_std, hidden = self(obs, graph, hidden)
-        if deterministic:
-            return mean, hidden
-        return mean + torch.exp(log_std) * torch.randn_like(mean), hidden                   # (n, A)
+        return sample_action(mean, log_std, deterministic), hidden                          # (n, A)
 
     def sequence_log_prob(self, obs_seq: dict, actions_seq, graph, hidden=None):
         """Returns (log pi(a_t | o_<=t), entropy of pi(. | o_<=t)), each (n, T), running the recurrence.
@@ -232,13 +360,50 @@ class ModularPolicy(nn.Module):
         penalty on demonstration observations (Sec. III-J).
         """
         n, T = actions_seq.shape[:2]
-        hidden = self.initial_hidden(n, graph) if hidden is None else hidden
+        pi = self.wire(graph)
+        h = (self.initial_hidden(n, graph) if hidden is None else hidden).transpose(0, 1)  # (N, n, H)
         log_probs, entropies = [], []
         for t in range(T):
-            mean, log_std, hidden = self({k: v[:, t] for k, v in obs_seq.items()}, graph, hidden)
+            mean, log_std, h = pi.step({k: v[:, t] for k, v in obs_seq.items()}, h)
             log_probs.append(gaussian_log_prob(mean, log_std, actions_seq[:, t]))          # (n,)
             entropies.append(gaussian_entropy(log_std))                                     # (n,)
         return torch.stack(log_probs, 1), torch.stack(entropies, 1)                         # (n, T) x 2
+
+
+class PolicyOnDesign:
+    """The policy wired for one design (see `Wired`); its memory is node-major, (N, n, H)."""
+
+    def __init__(self, policy: ModularPolicy, graph):
+        ix, cfg = node_index(graph), policy.cfg
+        self.kinds, self.log_std_range = ix.kinds, (cfg.log_std_min, cfg.log_std_max)
+
+        def encode_weight(layer):                                  # [obs | h] -> [obs padded to OBS_WIDTH | h]
+            k = layer.in_features - cfg.hidden
+            return torch.cat([pad_to(layer.weight[:, :k], OBS_WIDTH), layer.weight[:, k:]], 1)
+
+        def head_rows(x):                                          # [mean | raw] -> each padded to ACT_WIDTH
+            m, r = x.chunk(2, 0)
+            return torch.cat([pad_to(m, ACT_WIDTH, dim=0), pad_to(r, ACT_WIDTH, dim=0)])
+
+        self.w = wire(policy.nets, graph, cfg.rounds, encode_weight, lambda l: head_rows(l.weight),
+                      lambda l: head_rows(l.bias), limb_heads=True)
+        self.obs_scale = node_obs_scale(graph)                                              # (N, 1, O)
+        joints = flat_index(graph, (0, LEG_ACT_DIM, WHEEL_ACT_DIM), 2 * ACT_WIDTH, limbs_only=True)  # (A,)
+        self.action_index = torch.cat([joints, joints + ACT_WIDTH])                         # means, raw log-stds
+
+    def step(self, obs: dict, h):
+        """One control step: mean (n, A), log_std (n, A), next memory (N, n, H) from memory h (N, n, H)."""
+        o = nodes_first(obs, self.kinds, OBS_WIDTH) * self.obs_scale                        # (N, n, O)
+        z = propagate(self.w, encode(self.w, torch.cat([o, h], -1)))                        # (N, n, H)
+        h = gru(self.w, z, h)                                                               # (N, n, H)
+        mean, raw = to_flat(head(self.w, h[1:]), self.action_index).chunk(2, -1)           # (n, A) x 2
+        lo, hi = self.log_std_range
+        return mean, lo + (hi - lo) * torch.sigmoid(raw), h                                 # log_std in [lo, hi]
+
+    def act(self, obs: dict, h, deterministic: bool = False):
+        """`ModularPolicy.act` on node-major memory."""
+        mean, log_std, h = self.step(obs, h)
+        return sample_action(mean, log_std, deterministic), h
 
 
 class ModularValue(nn.Module):
@@ -260,11 +425,9 @@ class ModularValue(nn.Module):
 
     def forward(self, obs: dict, graph) -> torch.Tensor:
         """`observe`'s dict of tensors (n, ...) -> V (n,)."""
-        kinds = node_types(graph)
-        o = {"body": obs["body"][:, None], "leg": obs["leg"], "wheel": obs["wheel"]}        # (n, N_k, O_k)
-        z = propagate(self.nets, encode(self.nets, {k: o[k] * OBS_SCALE[k] for k in kinds}, graph),
-                      self.cfg.rounds)
-        return torch.cat([self.nets[k].head(z[k]) for k in kinds], 1).mean((1, 2))         # (n,)
+        w = wire(self.nets, graph, self.cfg.rounds, lambda l: pad_to(l.weight, OBS_WIDTH))
+        o = nodes_first(obs, node_index(graph).kinds, OBS_WIDTH) * node_obs_scale(graph)    # (N, n, O)
+        return head(w, propagate(w, encode(w, o))).mean((0, 2))                            # (n,)
 
 
 # ----------------------------------------------------------------------------
@@ -295,6 +458,9 @@ class ModularModel(nn.Module):
     height (sim2d.contact_features, differentiable forward kinematics).  Node outputs: body [dx, dy, dpitch, dvx, dvy,
     dpitch_rate], leg 4 joint changes, wheel 1.  Inputs and outputs are
     normalised per type with statistics from `fit_normalization`.
+
+    `wire(graph)` gathers the layers along a design's nodes once, for many
+    steps (`ModelOnDesign`); `forward` and `loss` wire for one call.
     """
 
     OUT_DIMS = {"body": BODY_DIM, "leg": LEG_DIM, "wheel": WHEEL_DIM}
@@ -322,30 +488,24 @@ class ModularModel(nn.Module):
                  "wheel": torch.cat([x["wheel"], contact["wheel"]], -1)}
         return x
 
-    def delta_normalised(self, s, a, graph) -> dict:
-        """The network proper: normalised change of state per type, (n, N_k, out_k)."""
-        kinds, x = node_types(graph), self.inputs(s, a, graph)
-        x = {k: (x[k] - self.norm_in[k].mean) / self.norm_in[k].std for k in kinds}
-        z = propagate(self.nets, encode(self.nets, x, graph), self.cfg.rounds)
-        return {k: self.nets[k].head(z[k]) for k in kinds}
+    def wire(self, graph) -> "ModelOnDesign":
+        return ModelOnDesign(self, graph)
 
     def forward(self, s, a, graph) -> torch.Tensor:
         """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
-        d = self.delta_normalised(s, a, graph)
-        delta = [d[k] * self.norm_out[k].std + self.norm_out[k].mean for k in d]            # (n, N_k, out_k)
-        return s + join_nodes(delta)                                                        # (n, S)
+        return self.wire(graph)(s, a)
 
     def state_error(self, s_pred, s_true, graph) -> torch.Tensor:
         """Mean squared error of predicted against true states, each entry divided by the fitted
         std of its change: for a one-step prediction the same number as `loss`."""
-        err = node_state(s_pred - s_true, graph)
-        return sum((err[k] / self.norm_out[k].std).pow(2).sum() for k in err) / s_true.numel()
+        std = torch.cat([self.norm_out[k].std for k, _ in graph.nodes])                     # (S,)
+        return ((s_pred - s_true) / std).pow(2).sum() / s_true.numel()
 
     def loss(self, s, a, s_next, graph) -> torch.Tensor:
         """Mean squared error of the normalised change of state, averaged over the n x S state entries."""
-        d, true = self.delta_normalised(s, a, graph), node_state(s_next - s, graph)
-        target = {k: (true[k] - self.norm_out[k].mean) / self.norm_out[k].std for k in d}   # (n, N_k, out_k)
-        return sum((d[k] - target[k]).pow(2).sum() for k in d) / s.numel()
+        f = self.wire(graph)
+        target = (s_next - s - f.out_mean) / f.out_std                                      # (n, S)
+        return (f.delta_normalised(s, a) - target).pow(2).sum() / s.numel()
 
     @torch.no_grad()
     def fit_normalization(self, batches):
@@ -365,6 +525,56 @@ class ModularModel(nn.Module):
             if len(x) > 1:
                 self.norm_in[k].fit(x)
                 self.norm_out[k].fit(d)
+
+
+@functools.lru_cache(maxsize=None)
+def model_input_index(graph, contact: bool) -> torch.Tensor:
+    """(N, width): which columns of [s (S), clipped a (A), contact features (C), 0] feed each node,
+    in `ModularModel.inputs`' order, zero-padded to the widest node (the last column is the 0)."""
+    S, A, L, W = graph.state_dim, graph.action_dim, graph.n_legs, graph.n_wheels
+    C = (3 * L + W) if contact else 0
+    body = list(range(1, BODY_DIM))                                                         # drop x
+    legs = [list(range(BODY_DIM + LEG_DIM * j, BODY_DIM + LEG_DIM * (j + 1)))
+            + [S + LEG_ACT_DIM * j + i for i in range(LEG_ACT_DIM)]
+            + ([S + A + 3 * j + i for i in range(3)] if contact else []) for j in range(L)]
+    wheels = [[BODY_DIM + LEG_DIM * L + j, S + LEG_ACT_DIM * L + j] + ([S + A + 3 * L + j] if contact else [])
+              for j in range(W)]
+    rows, zero = [body] + legs + wheels, S + A + C
+    width = max(len(r) for r in rows)
+    return torch.tensor([r + [zero] * (width - len(r)) for r in rows])
+
+
+class ModelOnDesign:
+    """The model wired for one design (see `Wired`): f(s, a) -> s_next on flat states (n, S)."""
+
+    def __init__(self, model: ModularModel, graph):
+        self.graph, self.contact = graph, model.cfg.contact_features
+        self.index = model_input_index(graph, self.contact)                                 # (N, I)
+        width, out_width = self.index.shape[1], max(model.OUT_DIMS.values())
+        self.w = wire(model.nets, graph, model.cfg.rounds, lambda l: pad_to(l.weight, width),
+                      lambda l: pad_to(l.weight, out_width, dim=0),
+                      lambda l: pad_to(l.bias, out_width))
+        kinds = [k for k, _ in graph.nodes]
+        self.in_mean = torch.stack([pad_to(model.norm_in[k].mean, width) for k in kinds])
+        self.in_std = torch.stack([pad_to(model.norm_in[k].std, width, value=1.0) for k in kinds])                                          # (N, I); pads: 0, 1
+        self.out_mean = torch.cat([model.norm_out[k].mean for k in kinds])                  # (S,)
+        self.out_std = torch.cat([model.norm_out[k].std for k in kinds])                    # (S,)
+        self.out_index = flat_index(graph, tuple(model.OUT_DIMS[k] for k in TYPES), out_width)
+
+    def delta_normalised(self, s, a) -> torch.Tensor:
+        """The network proper: the normalised change of state (n, S)."""
+        parts = [s, a.clamp(-1.0, 1.0)]
+        if self.contact:
+            c = sim2d.contact_features(s, self.graph)
+            parts += [c["leg"].flatten(1), c["wheel"].flatten(1)]
+        src = torch.cat(parts + [s.new_zeros(len(s), 1)], 1)                                # (n, S + A + C + 1)
+        x = (src[:, self.index] - self.in_mean) / self.in_std                               # (n, N, I)
+        z = propagate(self.w, encode(self.w, x.transpose(0, 1)))                            # (N, n, H)
+        return to_flat(head(self.w, z), self.out_index)                                     # (n, S)
+
+    def __call__(self, s, a) -> torch.Tensor:
+        """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
+        return s + self.delta_normalised(s, a) * self.out_std + self.out_mean
 
 
 # ----------------------------------------------------------------------------

@@ -223,13 +223,15 @@ class PolicyActor:
     """
 
     def __init__(self, policy: ModularPolicy, design: str, n: int, noise: np.ndarray | None = None):
-        self.policy, self.graph, self.noise = policy, sim2d.design_graph(design), noise
-        self.hidden = policy.initial_hidden(n, self.graph)
+        graph, self.noise = sim2d.design_graph(design), noise
+        with torch.no_grad():
+            self.policy = policy.wire(graph)                              # the weights do not change in an episode
+        self.hidden = policy.initial_hidden(n, graph).transpose(0, 1)     # node-major, (nodes, n, H)
 
     @torch.no_grad()
     def __call__(self, obs: dict, state, t: int) -> np.ndarray:
         obs = {k: torch.as_tensor(v, dtype=torch.float32) for k, v in obs.items()}
-        mean, self.hidden = self.policy.act(obs, self.graph, self.hidden, deterministic=True)
+        mean, self.hidden = self.policy.act(obs, self.hidden, deterministic=True)
         a = mean.numpy().astype(float)
         return a if self.noise is None else a + self.noise[:, t]
 
@@ -265,19 +267,37 @@ class Ensemble(torch.nn.Module):
         self.n_train = cfg.ensemble - cfg.held_out_models
 
     def pick(self) -> ModularModel:
-        return self.members[0] if self.n_train == 1 else self.members[int(torch.randint(self.n_train, ()))]
+        return self.members[pick_member(self.n_train)]
 
     def forward(self, s, a, graph):                       # s~' = f~(s~, a): (B, S)
         return self.pick()(s, a, graph)
 
-    def step_with_spread(self, s, a, graph):
-        """A random training member's prediction (B, S), and the std over the training members of
-        the predicted progress (B,) (m): how much the members disagree about this step."""
-        preds = torch.stack([m(s, a, graph) for m in self.members[:self.n_train]])      # (E, B, S)
-        return preds[int(torch.randint(self.n_train, ()))], preds[..., 0].std(0)
+    def wire(self, graph) -> "EnsembleOnDesign":
+        return EnsembleOnDesign(self, graph)
 
     def validation_models(self) -> list:
         return list(self.members[self.n_train:]) or list(self.members[:self.n_train])
+
+
+def pick_member(n_train: int) -> int:
+    """Which of the first n_train members predicts this step: 0, or a random one."""
+    return 0 if n_train == 1 else int(torch.randint(n_train, ()))
+
+
+class EnsembleOnDesign:
+    """The ensemble wired for one design's roll-outs: every member's gnn.ModelOnDesign."""
+
+    def __init__(self, ensemble: Ensemble, graph):
+        self.members, self.n_train = [m.wire(graph) for m in ensemble.members], ensemble.n_train
+
+    def __call__(self, s, a):                              # s~' = f~(s~, a): (B, S)
+        return self.members[pick_member(self.n_train)](s, a)
+
+    def step_with_spread(self, s, a):
+        """A random training member's prediction (B, S), and the std over the training members of
+        the predicted progress (B,) (m): how much the members disagree about this step."""
+        preds = torch.stack([m(s, a) for m in self.members[:self.n_train]])                # (E, B, S)
+        return preds[int(torch.randint(self.n_train, ()))], preds[..., 0].std(0)
 
 
 def model_loss(model: ModularModel, traj: Trajectories, transitions, n: int, horizon: int, rng) -> torch.Tensor:
@@ -294,9 +314,9 @@ def model_loss(model: ModularModel, traj: Trajectories, transitions, n: int, hor
     episodes, steps = traj.actions.shape[:2]
     e = torch.from_numpy(rng.integers(episodes, size=n // horizon))
     t0 = torch.from_numpy(rng.integers(steps - horizon + 1, size=n // horizon))
-    s, loss = traj.states[e, t0], 0.0                                                   # (n / H, S)
+    s, loss, f = traj.states[e, t0], 0.0, model.wire(graph)                             # (n / H, S)
     for h in range(horizon):
-        s = model(s, traj.actions[e, t0 + h], graph)                                    # open loop
+        s = f(s, traj.actions[e, t0 + h])                                               # open loop
         loss = loss + model.state_error(s, traj.states[e, t0 + h + 1], graph)
     return loss / horizon
 
@@ -347,18 +367,19 @@ def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int,
     commands back into range.  With `pessimism` > 0 (an Ensemble), each step's
     reward loses pessimism x the members' spread of predicted progress (MOPO).
     """
-    s, h, total = s0, h0, torch.zeros(len(s0))
+    pi, f = policy.wire(graph), model.wire(graph)           # weights gathered along the design's nodes once
+    s, h, total = s0, h0.transpose(0, 1), torch.zeros(len(s0))                  # h node-major: (nodes, B, H)
     for _ in range(horizon):
         noise = None if deterministic else sim2d.obs_noise_like(s, graph)
-        a, h = policy.act(sim2d.observe(s, graph, noise), graph, h, deterministic=deterministic)
+        a, h = pi.act(sim2d.observe(s, graph, noise), h, deterministic=deterministic)
         if pessimism:
-            s_next, spread = model.step_with_spread(s, a, graph)                # (B, S), (B,)
+            s_next, spread = f.step_with_spread(s, a)                           # (B, S), (B,)
             total = total + sim2d.reward(s, a, s_next, graph) - pessimism * spread
         else:
-            s_next = model(s, a, graph)                                         # (B, S)
+            s_next = f(s, a)                                                    # (B, S)
             total = total + sim2d.reward(s, a, s_next, graph)                   # (B,)
         s = s_next
-    return total, s, h
+    return total, s, h.transpose(0, 1)
 
 
 def rl_loss(policy: ModularPolicy, model: Ensemble, buffers: dict, cfg: Config, rng) -> torch.Tensor:
@@ -410,13 +431,16 @@ def trust_region_loss(policy: ModularPolicy, anchor: ModularPolicy, data: dict[s
         e = torch.from_numpy(rng.integers(episodes, size=cfg.il_batch))
         t0 = torch.from_numpy(rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch))
         obs = sim2d.observe(traj.states[e[:, None], t0[:, None] + torch.arange(cfg.il_window)], graph)
-        h = h_anchor = policy.initial_hidden(cfg.il_batch, graph)                   # (batch, nodes, H)
+        h = h_anchor = policy.initial_hidden(cfg.il_batch, graph).transpose(0, 1)  # (nodes, batch, H)
+        pi = policy.wire(graph)
+        with torch.no_grad():
+            pi_anchor = anchor.wire(graph)
         kl = 0.0
         for t in range(cfg.il_window):
             o = {k: v[:, t] for k, v in obs.items()}                                # (batch, ...)
-            mean, log_std, h = policy(o, graph, h)
+            mean, log_std, h = pi.step(o, h)
             with torch.no_grad():
-                mean_a, log_std_a, h_anchor = anchor(o, graph, h_anchor)
+                mean_a, log_std_a, h_anchor = pi_anchor.step(o, h_anchor)
             kl = kl + gaussian_kl(mean_a, log_std_a, mean, log_std).mean()
         loss = loss + kl / cfg.il_window
     return loss
@@ -613,9 +637,9 @@ def model_bias(policy: ModularPolicy, models: Ensemble, design: str, run: sim2d.
     for model in models.members:
         _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
         predicted.append((s_T[:, 0] - s0[:, 0]).mean())
-        s = s0
+        s, f = s0, model.wire(graph)
         for t in range(T):
-            s = model(s, actions[:, t], graph)
+            s = f(s, actions[:, t])
         replayed.append((s[:, 0] - states[:, T, 0]).abs().mean())
     return {"model_progress_m": float(torch.stack(predicted).mean()),
             "sim_progress_m": float((states[:, T, 0] - s0[:, 0]).mean()),

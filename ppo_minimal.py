@@ -41,7 +41,8 @@ import numpy as np
 import torch
 
 import sim2d
-from gnn import GNNConfig, ModularPolicy, ModularValue, gaussian_entropy, gaussian_log_prob
+from gnn import (GNNConfig, ModularPolicy, ModularValue, PolicyOnDesign, gaussian_entropy, gaussian_log_prob,
+                 sample_action)
 from modular_rlil_minimal import eval_seed, evaluate_policy, new_seed, record, seed_everything
 
 
@@ -152,8 +153,21 @@ class Memoryless(torch.nn.Module):
 
     def act(self, obs: dict, graph, hidden, deterministic: bool = False):
         mean, log_std = self.distribution(obs, graph)
-        a = mean if deterministic else mean + torch.exp(log_std) * torch.randn_like(mean)
-        return a, hidden                                                             # the memory stays 0
+        return sample_action(mean, log_std, deterministic), hidden                   # the memory stays 0
+
+    def wire(self, graph) -> "MemorylessOnDesign":
+        return MemorylessOnDesign(self.policy.wire(graph))
+
+
+class MemorylessOnDesign:
+    """`Memoryless` wired for one design (gnn.PolicyOnDesign), as PolicyActor runs it."""
+
+    def __init__(self, policy: PolicyOnDesign):
+        self.policy = policy
+
+    def act(self, obs: dict, hidden, deterministic: bool = False):
+        mean, log_std, _ = self.policy.step(obs, torch.zeros_like(hidden))
+        return sample_action(mean, log_std, deterministic), hidden                   # the memory stays 0
 
 
 class SamplingActor:

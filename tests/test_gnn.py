@@ -121,10 +121,57 @@ def test_body_tells_front_from_rear_leg():
                               policy(obs, rear, policy.initial_hidden(3, rear))[0])
 
 
-def test_port_index_is_each_limbs_body_port_and_made_once():
+def test_node_index_is_each_nodes_type_and_port_and_made_once():
     graph = sim2d.design_graph("lnwwnl")
-    assert gnn.port_index(graph, "leg").tolist() == [0, 5] and gnn.port_index(graph, "wheel").tolist() == [2, 3]
-    assert gnn.port_index(graph, "leg") is gnn.port_index(sim2d.design_graph("leg_none_wheel"), "leg")
+    ix = gnn.node_index(graph)
+    assert ix.kinds == ("body", "leg", "wheel") and ix.type_of.tolist() == [0, 1, 1, 2, 2]
+    assert ix.limb_type.tolist() == [0, 0, 1, 1] and ix.ports.tolist() == [0, 5, 2, 3]
+    assert gnn.node_index(sim2d.design_graph("leg_none_wheel")) is ix
+
+
+def reference_step(nets, graph, x: list, h: list | None, rounds: int) -> list:
+    """The GNN of gnn.py's docstring written node by node with each type's own modules: x, h lists of
+    (n, F) per node in node order.  Returns every node's output (n, out) (the policy: its new memory)."""
+    kinds = [k for k, _ in graph.nodes]
+    ports = [None] + [p for _, p in graph.nodes[1:]]
+    z = [torch.tanh(nets[k].encode(xi) + (0 if p is None else nets.body.ports.weight[p]))
+         for k, p, xi in zip(kinds, ports, x)]
+    for _ in range(rounds):
+        inbox = sum(nets[k].up(zi) for k, zi in zip(kinds[1:], z[1:]))
+        body = z[0] + torch.tanh(nets.body.own(z[0]) + inbox)
+        z = [body] + [zi + torch.tanh(nets[k].own(zi) + nets[k].down(body)) for k, zi in zip(kinds[1:], z[1:])]
+    if h is not None:
+        return [nets[k].gru(zi, hi) for k, zi, hi in zip(kinds, z, h)]
+    return [nets[k].head(zi) for k, zi in zip(kinds, z)]
+
+
+@pytest.mark.parametrize("code", ["lnwwnl", "llllll", "wnwwnw", "nnnnnw", "llwwll"])
+def test_wired_layers_equal_each_nodes_own_type_modules(code):
+    """The per-node gathered, zero-padded weights compute what each module's own layers compute."""
+    torch.manual_seed(0)
+    graph, n = sim2d.design_graph(code), 4
+    cfg = gnn.GNNConfig(contact_features=True)
+    policy, model = gnn.ModularPolicy(cfg), gnn.ModularModel(cfg)
+    s, a = initial_states(graph, n), random_actions(graph, n) * 1.5
+    model.fit_normalization([(graph, s, a, s + 0.1 * torch.randn_like(s))])
+    obs, hidden = noisy_obs(s, graph), torch.randn(n, 1 + graph.n_legs + graph.n_wheels, cfg.hidden).tanh()
+    # policy: node input [scaled observation, memory]
+    o = [obs["body"]] + list(obs["leg"].unbind(1)) + list(obs["wheel"].unbind(1))
+    x = [torch.cat([oi * gnn.OBS_SCALE[k], hi], -1) for (k, _), oi, hi in zip(graph.nodes, o, hidden.unbind(1))]
+    h = reference_step(policy.nets, graph, x, list(hidden.unbind(1)), cfg.rounds)
+    heads = [policy.nets[k].head(hi).chunk(2, -1) for (k, _), hi in zip(graph.nodes[1:], h[1:])]
+    lo, hi_ = cfg.log_std_min, cfg.log_std_max
+    mean, log_std, h_next = policy(obs, graph, hidden)
+    torch.testing.assert_close(mean, torch.cat([m for m, _ in heads], -1))
+    torch.testing.assert_close(log_std, lo + (hi_ - lo) * torch.sigmoid(torch.cat([r for _, r in heads], -1)))
+    torch.testing.assert_close(h_next, torch.stack(h, 1))
+    # model: normalised node inputs -> normalised change of state per node
+    raw = model.inputs(s, a, graph)
+    xs = [(xi - model.norm_in[k].mean) / model.norm_in[k].std
+          for (k, _), xi in zip(graph.nodes, [raw["body"][:, 0]] + list(raw["leg"].unbind(1)) + list(raw["wheel"].unbind(1)))]
+    d = [yi * model.norm_out[k].std + model.norm_out[k].mean
+         for (k, _), yi in zip(graph.nodes, reference_step(model.nets, graph, xs, None, cfg.rounds))]
+    torch.testing.assert_close(model(s, a, graph), s + torch.cat(d, -1))
 
 
 def test_batch_equals_one_robot_at_a_time():

@@ -163,6 +163,9 @@ class Drifts(torch.nn.Module):
     def forward(self, s, a, graph):
         return s + torch.nn.functional.one_hot(torch.tensor(0), s.shape[-1]) * 0.1
 
+    def wire(self, graph):                                  # as gnn.ModularModel.wire: f(s, a) for roll-outs
+        return lambda s, a: self(s, a, graph)
+
 
 def test_buffer_refresh_overwrites_the_second_half_with_states_T_over_2_steps_on():
     """Lines 23-24: from states at x = 0, T/2 = 5 model steps of +0.1 m put the refreshed half at
@@ -459,6 +462,9 @@ class Shifts(torch.nn.Module):
 
     def forward(self, s, a, graph):
         return s + torch.nn.functional.one_hot(torch.tensor(0), s.shape[-1]) * self.dx
+
+    def wire(self, graph):
+        return lambda s, a: self(s, a, graph)
 
 
 def test_ensemble_trains_through_its_training_members_and_validates_on_the_held_out_ones():
