@@ -362,12 +362,13 @@ class ModularPolicy(nn.Module):
         n, T = actions_seq.shape[:2]
         pi = self.wire(graph)
         h = (self.initial_hidden(n, graph) if hidden is None else hidden).transpose(0, 1)  # (N, n, H)
-        log_probs, entropies = [], []
+        means, log_stds = [], []
         for t in range(T):
             mean, log_std, h = pi.step({k: v[:, t] for k, v in obs_seq.items()}, h)
-            log_probs.append(gaussian_log_prob(mean, log_std, actions_seq[:, t]))          # (n,)
-            entropies.append(gaussian_entropy(log_std))                                     # (n,)
-        return torch.stack(log_probs, 1), torch.stack(entropies, 1)                         # (n, T) x 2
+            means.append(mean)
+            log_stds.append(log_std)
+        mean, log_std = torch.stack(means, 1), torch.stack(log_stds, 1)                    # (n, T, A)
+        return gaussian_log_prob(mean, log_std, actions_seq), gaussian_entropy(log_std)     # (n, T) x 2
 
 
 class PolicyOnDesign:

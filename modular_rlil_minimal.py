@@ -357,7 +357,7 @@ def train_model(models: Ensemble, data: dict[str, Trajectories], cfg: Config, rn
 # ----------------------------------------------------------------------------
 def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int,
             deterministic: bool = False, pessimism: float = 0.0):
-    """Algorithm 1 lines 10-15: a ~ pi(a | O(s~)), s~' = f~(s~, a), R += r(s~, a, s~').
+    """Algorithm 1 lines 10-15: a ~ pi(a | O(s~)), s~' = f~(s~, a), R = sum over the T steps of r(s~, a, s~').
 
     s0: (B, S) initial states, h0: (B, nodes, H) policy hidden states.  Returns
     the summed reward R (B,), the final state and hidden state.  Actions are
@@ -368,18 +368,21 @@ def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int,
     reward loses pessimism x the members' spread of predicted progress (MOPO).
     """
     pi, f = policy.wire(graph), model.wire(graph)           # weights gathered along the design's nodes once
-    s, h, total = s0, h0.transpose(0, 1), torch.zeros(len(s0))                  # h node-major: (nodes, B, H)
+    states, actions, penalty, h = [s0], [], 0.0, h0.transpose(0, 1)             # h node-major: (nodes, B, H)
     for _ in range(horizon):
+        s = states[-1]
         noise = None if deterministic else sim2d.obs_noise_like(s, graph)
         a, h = pi.act(sim2d.observe(s, graph, noise), h, deterministic=deterministic)
         if pessimism:
             s_next, spread = f.step_with_spread(s, a)                           # (B, S), (B,)
-            total = total + sim2d.reward(s, a, s_next, graph) - pessimism * spread
+            penalty = penalty + pessimism * spread
         else:
             s_next = f(s, a)                                                    # (B, S)
-            total = total + sim2d.reward(s, a, s_next, graph)                   # (B,)
-        s = s_next
-    return total, s, h.transpose(0, 1)
+        states.append(s_next)
+        actions.append(a)
+    s = torch.stack(states)                                                     # (T + 1, B, S)
+    total = sim2d.reward(s[:-1], torch.stack(actions), s[1:], graph).sum(0) - penalty   # (B,)
+    return total, states[-1], h.transpose(0, 1)
 
 
 def rl_loss(policy: ModularPolicy, model: Ensemble, buffers: dict, cfg: Config, rng) -> torch.Tensor:
