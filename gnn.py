@@ -111,20 +111,9 @@ def node_types(graph) -> list[str]:
     return ["body"] + [k for k, n in (("leg", graph.n_legs), ("wheel", graph.n_wheels)) if n]
 
 
-def split_nodes(x, graph) -> dict:
-    """Per-node (n, 1 + L + W, F) -> {"body": (n, 1, F), "leg": (n, L, F), "wheel": (n, W, F)}."""
-    nl = graph.n_legs
-    return {"body": x[:, :1], "leg": x[:, 1:1 + nl], "wheel": x[:, 1 + nl:]}
-
-
 def node_state(s, graph) -> dict:
     """Flat state (n, S) -> {"body": (n, 1, 6), "leg": (n, L, 4), "wheel": (n, W, 1)}."""
     return {**sim2d.split_state(s, graph), "body": s[:, None, :BODY_DIM]}
-
-
-def join_nodes(parts: list) -> torch.Tensor:
-    """[(n, N_k, F_k) per type, in node order] -> flat (n, sum_k N_k F_k), sim2d's layout."""
-    return torch.cat([p.flatten(1) for p in parts], 1)
 
 
 def count_parameters(module: nn.Module) -> int:
@@ -556,8 +545,8 @@ class ModelOnDesign:
                       lambda l: pad_to(l.weight, out_width, dim=0),
                       lambda l: pad_to(l.bias, out_width))
         kinds = [k for k, _ in graph.nodes]
-        self.in_mean = torch.stack([pad_to(model.norm_in[k].mean, width) for k in kinds])
-        self.in_std = torch.stack([pad_to(model.norm_in[k].std, width, value=1.0) for k in kinds])                                          # (N, I); pads: 0, 1
+        self.in_mean = torch.stack([pad_to(model.norm_in[k].mean, width) for k in kinds])         # pads: 0, std 1
+        self.in_std = torch.stack([pad_to(model.norm_in[k].std, width, value=1.0) for k in kinds])  # (N, I)
         self.out_mean = torch.cat([model.norm_out[k].mean for k in kinds])                  # (S,)
         self.out_std = torch.cat([model.norm_out[k].std for k in kinds])                    # (S,)
         self.out_index = flat_index(graph, tuple(model.OUT_DIMS[k] for k in TYPES), out_width)

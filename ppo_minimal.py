@@ -135,7 +135,7 @@ def iterations(cfg: PPOConfig) -> int:
 class Memoryless(torch.nn.Module):
     """pi_theta(a | o_t): gnn.ModularPolicy with its memory reset to h = 0 before every step.
 
-    Has the policy's `initial_hidden` and `act`, so modular_rlil_minimal's
+    Has the policy's `initial_hidden`, `act` and `wire`, so modular_rlil_minimal's
     PolicyActor and evaluate_policy run it unchanged; `distribution` gives the
     Gaussian (mean, log_std), each (n, A), of a batch of observations.
     """

@@ -167,8 +167,8 @@ def test_wired_layers_equal_each_nodes_own_type_modules(code):
     torch.testing.assert_close(h_next, torch.stack(h, 1))
     # model: normalised node inputs -> normalised change of state per node
     raw = model.inputs(s, a, graph)
-    xs = [(xi - model.norm_in[k].mean) / model.norm_in[k].std
-          for (k, _), xi in zip(graph.nodes, [raw["body"][:, 0]] + list(raw["leg"].unbind(1)) + list(raw["wheel"].unbind(1)))]
+    per_node = [raw["body"][:, 0]] + list(raw["leg"].unbind(1)) + list(raw["wheel"].unbind(1))
+    xs = [(xi - model.norm_in[k].mean) / model.norm_in[k].std for (k, _), xi in zip(graph.nodes, per_node)]
     d = [yi * model.norm_out[k].std + model.norm_out[k].mean
          for (k, _), yi in zip(graph.nodes, reference_step(model.nets, graph, xs, None, cfg.rounds))]
     torch.testing.assert_close(model(s, a, graph), s + torch.cat(d, -1))
