@@ -214,10 +214,8 @@ def wire(nets: nn.ModuleDict, graph, rounds: int, encode_weight=None, head_weigh
     gru = None
     if "gru" in nets.body:
         cells = [n.gru for n in nodes]
-        gru = (per_node([c.weight_ih for c in cells], ix.type_of).transpose(1, 2),
-               per_node([c.bias_ih for c in cells], ix.type_of)[:, None],
-               per_node([c.weight_hh for c in cells], ix.type_of).transpose(1, 2),
-               per_node([c.bias_hh for c in cells], ix.type_of)[:, None])
+        gru = (*per_node_linear(cells, ix.type_of, lambda c: c.weight_ih, lambda c: c.bias_ih),
+               *per_node_linear(cells, ix.type_of, lambda c: c.weight_hh, lambda c: c.bias_hh))
     return Wired(encode=(w_enc, b_enc + ports[:, None]),
                  own=per_node_linear([n.own for n in nodes], ix.type_of),
                  up=per_node_linear([n.up for n in limbs], ix.limb_type)[0],
@@ -485,11 +483,15 @@ class ModularModel(nn.Module):
         """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
         return self.wire(graph)(s, a)
 
+    def change_stats(self, graph):
+        """The fitted mean and std of each state entry's change, in sim2d's flat layout: (S,) each."""
+        kinds = [k for k, _ in graph.nodes]
+        return (torch.cat([self.norm_out[k].mean for k in kinds]), torch.cat([self.norm_out[k].std for k in kinds]))
+
     def state_error(self, s_pred, s_true, graph) -> torch.Tensor:
         """Mean squared error of predicted against true states, each entry divided by the fitted
         std of its change: for a one-step prediction the same number as `loss`."""
-        std = torch.cat([self.norm_out[k].std for k, _ in graph.nodes])                     # (S,)
-        return ((s_pred - s_true) / std).pow(2).sum() / s_true.numel()
+        return ((s_pred - s_true) / self.change_stats(graph)[1]).pow(2).sum() / s_true.numel()
 
     def loss(self, s, a, s_next, graph) -> torch.Tensor:
         """Mean squared error of the normalised change of state, averaged over the n x S state entries."""
@@ -547,8 +549,7 @@ class ModelOnDesign:
         kinds = [k for k, _ in graph.nodes]
         self.in_mean = torch.stack([pad_to(model.norm_in[k].mean, width) for k in kinds])         # pads: 0, std 1
         self.in_std = torch.stack([pad_to(model.norm_in[k].std, width, value=1.0) for k in kinds])  # (N, I)
-        self.out_mean = torch.cat([model.norm_out[k].mean for k in kinds])                  # (S,)
-        self.out_std = torch.cat([model.norm_out[k].std for k in kinds])                    # (S,)
+        self.out_mean, self.out_std = model.change_stats(graph)                             # (S,) each
         self.out_index = flat_index(graph, tuple(model.OUT_DIMS[k] for k in TYPES), out_width)
 
     def delta_normalised(self, s, a) -> torch.Tensor:
