@@ -759,8 +759,9 @@ FAR_SHIFT = np.array([4.0, 3.0])   # cm, drawing offset of the far (right) side
 
 
 def _draw_robot(ax, graph: DesignGraph, s: np.ndarray, wheel_angle: np.ndarray, alpha: float = 1.0):
-    """Draw one robot in state s (S,) with wheel spoke angles (W,) on `ax` (cm)."""
+    """Draw one robot in state s (S,) with wheel spoke angles (W,) on `ax` (cm); returns its artists."""
     import matplotlib.patches as mpatches
+    drawn = []
     for near in (False, True):                 # far side first, then body, then near side
         colours = NEAR if near else FAR
         z = 3 if near else 1
@@ -770,21 +771,24 @@ def _draw_robot(ax, graph: DesignGraph, s: np.ndarray, wheel_angle: np.ndarray, 
             if (port < 3) != near:
                 continue
             pts = np.stack([fk["hip"][k], fk["knee"][k], fk["foot"][k]])
-            ax.plot(pts[:, 0], pts[:, 1], "-", lw=5, color=colours["leg"], alpha=alpha,
-                    solid_capstyle="round", zorder=z)
-            ax.add_patch(mpatches.Circle(pts[2], FOOT_RADIUS, color=colours["leg"], alpha=alpha, zorder=z))
+            drawn += ax.plot(pts[:, 0], pts[:, 1], "-", lw=5, color=colours["leg"], alpha=alpha,
+                             solid_capstyle="round", zorder=z)
+            drawn.append(ax.add_patch(mpatches.Circle(pts[2], FOOT_RADIUS, color=colours["leg"], alpha=alpha,
+                                                      zorder=z)))
         for k, port in enumerate(graph.wheel_ports):
             if (port < 3) != near:
                 continue
             c = fk["axle"][k]
-            ax.add_patch(mpatches.Circle(c, WHEEL_RADIUS, fill=False, lw=3, color=colours["wheel"],
-                                         alpha=alpha, zorder=z))
+            drawn.append(ax.add_patch(mpatches.Circle(c, WHEEL_RADIUS, fill=False, lw=3, color=colours["wheel"],
+                                                      alpha=alpha, zorder=z)))
             for da in (0.0, math.pi / 2):      # two spokes show the rotation
                 d = WHEEL_RADIUS * np.array([math.cos(wheel_angle[k] + da), math.sin(wheel_angle[k] + da)])
-                ax.plot([c[0] - d[0], c[0] + d[0]], [c[1] - d[1], c[1] + d[1]], lw=1.5,
-                        color=colours["wheel"], alpha=alpha, zorder=z)
+                drawn += ax.plot([c[0] - d[0], c[0] + d[0]], [c[1] - d[1], c[1] + d[1]], lw=1.5,
+                                 color=colours["wheel"], alpha=alpha, zorder=z)
     fk = {k: v[0] for k, v in forward_kinematics(graph, s[None]).items()}
-    ax.add_patch(mpatches.Polygon(fk["corners"], closed=True, color="#555555", alpha=alpha, zorder=2))
+    drawn.append(ax.add_patch(mpatches.Polygon(fk["corners"], closed=True, color="#555555", alpha=alpha,
+                                               zorder=2)))
+    return drawn
 
 
 def _wheel_angles(graph: DesignGraph, states: np.ndarray) -> np.ndarray:
@@ -793,17 +797,20 @@ def _wheel_angles(graph: DesignGraph, states: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1, graph.n_wheels)), np.cumsum(rates[1:] * CONTROL_DT, 0)])
 
 
-def _style_axes(ax, x_centre: float, width: float = 250.0):
+def _style_axes(ax, x_centre: float, width: float = 250.0, static: bool = True):
+    """The view `width` cm wide centred on x_centre, ticks every 50 cm; static: also the parts
+    that do not move (ground line, height range), which a GIF draws once."""
     lo, hi = x_centre - width / 2, x_centre + width / 2
+    if static:
+        ax.set_ylim(-8, 90)
+        ax.set_aspect("equal")
+        ax.axhline(0, color="k", lw=2)
+        ax.set_yticks([])
+        ax.set_xlabel("x (m)")
     ax.set_xlim(lo, hi)
-    ax.set_ylim(-8, 90)
-    ax.set_aspect("equal")
-    ax.axhline(0, color="k", lw=2)
     ticks = np.arange(math.ceil(lo / 50) * 50, hi + 1e-9, 50)             # every 50 cm, inside the view
     ax.set_xticks(ticks)
     ax.set_xticklabels([f"{t / 100:g}" for t in ticks])
-    ax.set_yticks([])
-    ax.set_xlabel("x (m)")
 
 
 def save_gif(graph: DesignGraph, states: np.ndarray, path: str, every: int = 1, title: str = ""):
@@ -811,20 +818,21 @@ def save_gif(graph: DesignGraph, states: np.ndarray, path: str, every: int = 1, 
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation, PillowWriter
+    from matplotlib.animation import PillowWriter
     graph = design_graph(graph)
     angles = _wheel_angles(graph, states)
     fig, ax = plt.subplots(figsize=(8, 3.4), dpi=80)
-    frames = range(0, len(states), every)
-
-    def draw(t):
-        ax.clear()
-        _style_axes(ax, states[t, 0] / CM)
-        _draw_robot(ax, graph, states[t], angles[t])
-        ax.set_title(f"{title or graph.name}   t = {t * CONTROL_DT:4.1f} s   "
-                     f"distance = {states[t, 0] - states[0, 0]:5.2f} m", fontsize=13)
-
-    FuncAnimation(fig, draw, frames=frames).save(path, writer=PillowWriter(fps=12 // every))
+    _style_axes(ax, states[0, 0] / CM)
+    robot, writer = [], PillowWriter(fps=12 // every)
+    with writer.saving(fig, path, dpi=fig.dpi):
+        for t in range(0, len(states), every):              # per frame: move the view, redraw only the robot
+            for artist in robot:
+                artist.remove()
+            _style_axes(ax, states[t, 0] / CM, static=False)
+            robot = _draw_robot(ax, graph, states[t], angles[t])
+            ax.set_title(f"{title or graph.name}   t = {t * CONTROL_DT:4.1f} s   "
+                         f"distance = {states[t, 0] - states[0, 0]:5.2f} m", fontsize=13)
+            writer.grab_frame()                             # draws the figure once
     plt.close(fig)
 
 

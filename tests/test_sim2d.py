@@ -180,8 +180,17 @@ def test_rendering_writes_files(tmp_path):
     g = sim2d.design_graph("leg_none_wheel")
     states = sim2d.simulate(g, lambda obs, s, t: np.full((1, g.action_dim), -0.5), n=1, steps=6).states[0]
     sim2d.save_gif(g, states, str(tmp_path / "a.gif"))
+    sim2d.save_gif(g, states, str(tmp_path / "b.gif"), every=2)
     sim2d.save_png(g, states, str(tmp_path / "a.png"))
     assert (tmp_path / "a.gif").stat().st_size > 1000 and (tmp_path / "a.png").stat().st_size > 1000
+    from PIL import Image                                  # matplotlib's own dependency
+    with Image.open(tmp_path / "a.gif") as a, Image.open(tmp_path / "b.gif") as b:
+        assert (a.n_frames, b.n_frames) == (7, 4)          # states 0..6, and every second one
+        frames = []
+        for k in (0, 6):
+            a.seek(k)
+            frames.append(np.asarray(a.convert("RGB"), dtype=int))
+    assert np.abs(frames[0] - frames[1]).sum() > 0         # the robot moved: each frame redrawn
 
 
 def test_simulate_records_what_it_applied_and_passes_the_step():
