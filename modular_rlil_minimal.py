@@ -253,8 +253,8 @@ def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
 class Ensemble(torch.nn.Module):
     """f~_phi as `ensemble` modular models trained side by side on T_train.
 
-    With one member this is the paper's model.  Calling the ensemble is the
-    model the policy trains through: a random one of the first
+    With one member this is the paper's model.  `wire(graph)` is the model
+    the policy trains through: calling it steps a random one of the first
     `ensemble - held_out_models` members at every step (PETS, MBPO), so no single
     member's error can be exploited for a whole roll-out.  The last
     `held_out_models` members are never trained through; `validation_models`
@@ -266,22 +266,11 @@ class Ensemble(torch.nn.Module):
         self.members = torch.nn.ModuleList(ModularModel(cfg.gnn) for _ in range(cfg.ensemble))
         self.n_train = cfg.ensemble - cfg.held_out_models
 
-    def pick(self) -> ModularModel:
-        return self.members[pick_member(self.n_train)]
-
-    def forward(self, s, a, graph):                       # s~' = f~(s~, a): (B, S)
-        return self.pick()(s, a, graph)
-
     def wire(self, graph) -> "EnsembleOnDesign":
         return EnsembleOnDesign(self, graph)
 
     def validation_models(self) -> list:
         return list(self.members[self.n_train:]) or list(self.members[:self.n_train])
-
-
-def pick_member(n_train: int) -> int:
-    """Which of the first n_train members predicts this step: 0, or a random one."""
-    return 0 if n_train == 1 else int(torch.randint(n_train, ()))
 
 
 class EnsembleOnDesign:
@@ -290,14 +279,18 @@ class EnsembleOnDesign:
     def __init__(self, ensemble: Ensemble, graph):
         self.members, self.n_train = [m.wire(graph) for m in ensemble.members], ensemble.n_train
 
+    def pick(self) -> int:
+        """Which of the first n_train members predicts this step: 0, or a random one."""
+        return 0 if self.n_train == 1 else int(torch.randint(self.n_train, ()))
+
     def __call__(self, s, a):                              # s~' = f~(s~, a): (B, S)
-        return self.members[pick_member(self.n_train)](s, a)
+        return self.members[self.pick()](s, a)
 
     def step_with_spread(self, s, a):
         """A random training member's prediction (B, S), and the std over the training members of
         the predicted progress (B,) (m): how much the members disagree about this step."""
         preds = torch.stack([m(s, a) for m in self.members[:self.n_train]])                # (E, B, S)
-        return preds[int(torch.randint(self.n_train, ()))], preds[..., 0].std(0)
+        return preds[self.pick()], preds[..., 0].std(0)
 
 
 def model_loss(model: ModularModel, traj: Trajectories, transitions, n: int, horizon: int, rng) -> torch.Tensor:

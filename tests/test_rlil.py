@@ -473,7 +473,8 @@ def test_ensemble_trains_through_its_training_members_and_validates_on_the_held_
     models.members = torch.nn.ModuleList([Shifts(0.1), Shifts(0.2), Shifts(5.0)])
     s = torch.zeros(4, sim2d.design_graph("car").state_dim)
     torch.manual_seed(0)
-    steps = {round(models(s, None, None)[0, 0].item(), 3) for _ in range(50)}
+    f = models.wire(sim2d.design_graph("car"))                 # what rollout steps through
+    steps = {round(f(s, None)[0, 0].item(), 3) for _ in range(50)}
     assert steps == {0.1, 0.2}                                  # a random training member per step, never #3
     assert [m.dx for m in models.validation_models()] == [5.0]
     models.n_train = 3
