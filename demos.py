@@ -67,12 +67,13 @@ class DemoConfig:
     tracking_gain: float = 1.0
     """fraction of the joint-angle error closed in one control step (0.5-1; 1
     commands the rate that reaches the reference exactly, kp = 12 /s)."""
-    execution_noise: float = 0.0
+    execution_noise: float = 0.15
     """std of smooth random noise (sim2d.random_spline_actions) added to the actions
     the robot executes, not to the actions recorded (0-0.3).  The recorded
     action is the demonstrator's answer in the state the noise led to, so the
     dataset shows recoveries as well as the gait (DART, Laskey et al. 2017).
-    0 = the paper's noiseless demonstrations."""
+    0 = the paper's noiseless demonstrations; 0.15 = what training uses
+    (modular_rlil_minimal.Config.demo_noise)."""
     wheel_pitch_backoff: float = 0.5
     """rad of |pitch| at which the wheels stop driving (0.3-1.0); linear below."""
 

@@ -7,10 +7,12 @@ message passing over the design graph), Sec. III-C "Train approximate dynamics
 model" (the same modular structure, predicting the change of state) and
 Sec. III-J "Implementation details" (the policy is recurrent over time).
 
-    python gnn.py            # parameter counts per module type and per design (CPU, 3 s)
-    python gnn.py --bench    # + speed of policy updates through model roll-outs, of model fitting, and of
-                             # the default run's policy, BC and model steps (CPU, 30 s)
-    python gnn.py --profile policy    # operators of the default run's policy step, by self CPU time
+    python gnn.py            # parameter counts per module type and per design
+    python bench.py --networks        # speed of policy updates through model roll-outs, of model fitting,
+                                      # and of the default run's policy, BC and model steps
+    python bench.py --profile policy  # operators of the default run's policy step, by self CPU time
+    (`python gnn.py --bench` and `python gnn.py --profile X` still work: the parameter
+    counts, then they forward to bench.py.)
 
 How a design becomes a network
 ------------------------------
@@ -37,18 +39,19 @@ or batch of windows, so each layer above is one batched matrix product
 no loop over robots, nodes or types.  Types whose inputs or outputs are
 narrower are zero-padded to the widest.  Gathering is differentiable, so the
 parameters stay one set per type (`nets`), and module types a design lacks
-get no gradient.  tests/test_gnn.py checks the wired network against each
-node's own type's modules applied one node at a time.
+get no gradient.  `node_by_node` writes one step plainly, node by node (read
+it first); the classes' `forward_node_by_node` use it, and tests/test_gnn.py
+checks that the batched path computes the same numbers.  Node tensors of the
+batched path, the policy's memory among them, are node-major: (nodes, robots,
+features).
 """
 from __future__ import annotations
 
 import argparse
 import functools
 import math
-import time
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 import torch.nn as nn
 
@@ -116,12 +119,17 @@ def node_state(s, graph) -> dict:
     return {**sim2d.split_state(s, graph), "body": s[:, None, :BODY_DIM]}
 
 
+def node_obs(obs: dict) -> list:
+    """`observe`'s dict -> each node's observation (n, F) in node order (body, legs, wheels)."""
+    return [obs["body"]] + list(obs["leg"].unbind(1)) + list(obs["wheel"].unbind(1))
+
+
 def count_parameters(module: nn.Module) -> int:
     return sum(p.numel() for p in module.parameters())
 
 
 # ----------------------------------------------------------------------------
-# Per-type networks, and the same layers wired along one design's nodes
+# Per-type networks, and one step of a modular network node by node (read this first)
 # ----------------------------------------------------------------------------
 def type_net(kind: str, in_dim: int, out_dim: int, hidden: int, recurrent: bool) -> nn.ModuleDict:
     """The layers of one module type; every module of that type, in every design, uses them."""
@@ -139,6 +147,252 @@ def type_net(kind: str, in_dim: int, out_dim: int, hidden: int, recurrent: bool)
     return net
 
 
+def node_by_node(nets: nn.ModuleDict, graph, x: list, h: list | None, rounds: int):
+    """One step of a modular network, written plainly, one node at a time (docstring steps 1-3).
+
+    x: each node's input (n, in) in node order (body, legs, wheels); h: each
+    node's memory (n, H) for the policy, None for the model and the critic.
+    Returns each node's head output (n, out), None for a node without a head
+    (the policy's body), and the new memories (None without memory).  The
+    batched path below (`wire`) computes the same numbers for all nodes at
+    once; tests/test_gnn.py checks that it does.
+    """
+    kinds = [kind for kind, _ in graph.nodes]
+    z = [torch.tanh(nets[kind].encode(xi) + (nets.body.ports.weight[port] if port is not None else 0))
+         for (kind, port), xi in zip(graph.nodes, x)]                               # 1. encode, + port vector
+    for _ in range(rounds):                                                          # 2. messages on the star
+        inbox = sum(nets[kind].up(zi) for kind, zi in zip(kinds[1:], z[1:]))        # limbs -> body
+        body = z[0] + torch.tanh(nets.body.own(z[0]) + inbox)
+        z = [body] + [zi + torch.tanh(nets[kind].own(zi) + nets[kind].down(body))  # body -> limbs
+                      for kind, zi in zip(kinds[1:], z[1:])]
+    if h is not None:                                                                # 3. memory: h <- GRU(z, h)
+        z = h = [nets[kind].gru(zi, hi) for kind, zi, hi in zip(kinds, z, h)]
+    return [nets[kind].head(zi) if "head" in nets[kind] else None for kind, zi in zip(kinds, z)], h  # 3. read out
+
+# ----------------------------------------------------------------------------
+# The modular policy pi_theta(a | o, d), recurrent over time
+# ----------------------------------------------------------------------------
+def sample_action(mean, log_std, deterministic: bool):
+    """a ~ N(mean, exp(log_std)^2), reparameterised (or the mean)."""
+    return mean if deterministic else mean + torch.exp(log_std) * torch.randn_like(mean)
+
+
+class ModularPolicy(nn.Module):
+    """pi_theta(a | o, d): a Gaussian over each joint's normalised velocity command.
+
+    Every node keeps a memory h, updated by its type's GRUCell after message
+    passing.  The memory is an explicit tensor (1 + L + W, n, hidden), node
+    major like every node tensor here: reset
+    with `initial_hidden`, read from what `forward`/`act` return, set by
+    passing it in (detach it between batches for truncated BPTT).  A node's
+    input is its scaled observation and its memory, so messages carry memory.
+    The log-std is state-dependent: a second output per joint, squashed into
+    [log_std_min, log_std_max] by a sigmoid (about mid-way at initialisation).
+
+    `wire(graph)` gathers the layers along a design's nodes once, for many
+    steps (`PolicyOnDesign`); `forward` and `act` wire for one step.
+    """
+
+    def __init__(self, cfg: GNNConfig = GNNConfig()):
+        super().__init__()
+        self.cfg = cfg
+        H = cfg.hidden
+        self.nets = nn.ModuleDict({                      # limb heads: mean and raw log-std per joint
+            "body": type_net("body", BODY_OBS_DIM + H, 0, H, recurrent=True),
+            "leg": type_net("leg", LEG_OBS_DIM + H, 2 * LEG_ACT_DIM, H, recurrent=True),
+            "wheel": type_net("wheel", WHEEL_OBS_DIM + H, 2 * WHEEL_ACT_DIM, H, recurrent=True)})
+
+    def initial_hidden(self, n: int, graph) -> torch.Tensor:
+        """h_0 = 0: (1 + n_legs + n_wheels, n, hidden), node 0 the body, then the legs, then the wheels."""
+        return torch.zeros(1 + graph.n_legs + graph.n_wheels, n, self.cfg.hidden)
+
+    def wire(self, graph) -> "PolicyOnDesign":
+        return PolicyOnDesign(self, graph)
+
+    def forward(self, obs: dict, graph, hidden):
+        """One control step from `observe`'s dict of tensors: mean (n, A), log_std (n, A), next hidden."""
+        return self.wire(graph).step(obs, hidden)                                   # (n, A), (n, A), (N, n, H)
+
+    def forward_node_by_node(self, obs: dict, graph, hidden):
+        """`forward` written plainly with `node_by_node` (what the batched `wire` path computes).
+        A node's input is its scaled observation and its memory; each limb's head gives the
+        mean and the raw log-std of its joints, in sim2d's action order."""
+        x = [torch.cat([o * OBS_SCALE[kind], h], -1) for (kind, _), o, h in zip(graph.nodes, node_obs(obs), hidden)]
+        out, h = node_by_node(self.nets, graph, x, list(hidden), self.cfg.rounds)
+        mean, raw = zip(*(y.chunk(2, -1) for y in out[1:]))                             # limbs only
+        lo, hi = self.cfg.log_std_min, self.cfg.log_std_max
+        return torch.cat(mean, -1), lo + (hi - lo) * torch.sigmoid(torch.cat(raw, -1)), torch.stack(h)
+
+    def act(self, obs: dict, graph, hidden, deterministic: bool = False):
+        """a_t ~ pi_theta(. | o_<=t), reparameterised (or the mean), and the next hidden.
+
+        Not clipped: the world clips actions to [-1, 1], and so does the model.
+        """
+        mean, log_std, hidden = self(obs, graph, hidden)
+        return sample_action(mean, log_std, deterministic), hidden                          # (n, A)
+
+    def sequence_log_prob(self, obs_seq: dict, actions_seq, graph, hidden=None):
+        """Returns (log pi(a_t | o_<=t), entropy of pi(. | o_<=t)), each (n, T), running the recurrence.
+
+        obs_seq: `observe`'s dict with a time axis, values (n, T, ...); actions_seq: (n, T, A);
+        hidden: h_0 (zeros if None).  Feeds eqn. (IL_loss) (Sec. III-E) and the entropy
+        penalty on demonstration observations (Sec. III-J).
+        """
+        n, T = actions_seq.shape[:2]
+        pi = self.wire(graph)
+        h = self.initial_hidden(n, graph) if hidden is None else hidden                    # (N, n, H)
+        means, log_stds = [], []
+        for t in range(T):
+            mean, log_std, h = pi.step({k: v[:, t] for k, v in obs_seq.items()}, h)
+            means.append(mean)
+            log_stds.append(log_std)
+        mean, log_std = torch.stack(means, 1), torch.stack(log_stds, 1)                    # (n, T, A)
+        return gaussian_log_prob(mean, log_std, actions_seq), gaussian_entropy(log_std)     # (n, T) x 2
+
+
+class ModularValue(nn.Module):
+    """V_psi(o, d): the value of an observation, for the model-free baseline (ppo_minimal.py).
+
+    Not in the paper, whose Algorithm 1 needs no critic.  The same modular
+    structure as the policy without the memory: one set of layers per module
+    type, encode + message passing on the design graph, a scalar per node;
+    V = the mean of the node scalars, so its scale does not grow with the
+    number of limbs.
+    """
+
+    def __init__(self, cfg: GNNConfig = GNNConfig()):
+        super().__init__()
+        self.cfg = cfg
+        self.nets = nn.ModuleDict({"body": type_net("body", BODY_OBS_DIM, 1, cfg.hidden, recurrent=False),
+                                   "leg": type_net("leg", LEG_OBS_DIM, 1, cfg.hidden, recurrent=False),
+                                   "wheel": type_net("wheel", WHEEL_OBS_DIM, 1, cfg.hidden, recurrent=False)})
+
+    def forward_node_by_node(self, obs: dict, graph) -> torch.Tensor:
+        """`forward` written plainly with `node_by_node`: V (n,), the mean of the node scalars."""
+        x = [o * OBS_SCALE[kind] for (kind, _), o in zip(graph.nodes, node_obs(obs))]
+        return torch.stack(node_by_node(self.nets, graph, x, None, self.cfg.rounds)[0]).mean((0, 2))
+
+    def forward(self, obs: dict, graph) -> torch.Tensor:
+        """`observe`'s dict of tensors (n, ...) -> V (n,)."""
+        w = wire(self.nets, graph, self.cfg.rounds, lambda l: pad_to(l.weight, OBS_WIDTH))
+        o = nodes_first(obs, node_index(graph).kinds, OBS_WIDTH) * node_obs_scale(graph)    # (N, n, O)
+        return head(w, propagate(w, encode(w, o))).mean((0, 2))                            # (n,)
+
+
+# ----------------------------------------------------------------------------
+# The modular dynamics model f~_phi(s, a, d)
+# ----------------------------------------------------------------------------
+class Normalizer(nn.Module):
+    """Per-feature mean and std, fitted from data and saved in the state_dict."""
+
+    def __init__(self, dim: int):
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(dim))
+        self.register_buffer("std", torch.ones(dim))
+
+    def fit(self, x):
+        """x: (rows, dim).  A feature that never varies gets std 1e-6 instead of 0."""
+        self.mean.copy_(x.mean(0))
+        self.std.copy_(x.std(0).clamp_min(1e-6))
+
+
+class ModularModel(nn.Module):
+    """f~_phi(s, a, d) = s + Delta(s, a, d): predicts every module's change of state.
+
+    Node inputs: body [y, pitch, vx, vy, pitch_rate] (x is left out, so the
+    prediction is the same wherever the robot is), leg [4 joint states,
+    2 actions], wheel [rate, action]; actions are clipped to [-1, 1] as the
+    world clips them.  With `contact_features` a leg also reads its foot's
+    height above the ground and velocity, and a wheel its lowest point's
+    height (sim2d.contact_features, differentiable forward kinematics).  Node outputs: body [dx, dy, dpitch, dvx, dvy,
+    dpitch_rate], leg 4 joint changes, wheel 1.  Inputs and outputs are
+    normalised per type with statistics from `fit_normalization`.
+
+    `wire(graph)` gathers the layers along a design's nodes once, for many
+    steps (`ModelOnDesign`); `forward` and `loss` wire for one call.
+    """
+
+    OUT_DIMS = {"body": BODY_DIM, "leg": LEG_DIM, "wheel": WHEEL_DIM}
+
+    def __init__(self, cfg: GNNConfig = GNNConfig()):
+        super().__init__()
+        self.cfg = cfg
+        extra = {"body": 0, "leg": 3, "wheel": 1} if cfg.contact_features else {"body": 0, "leg": 0, "wheel": 0}
+        self.in_dims = {"body": BODY_DIM - 1 + extra["body"], "leg": LEG_DIM + LEG_ACT_DIM + extra["leg"],
+                        "wheel": WHEEL_DIM + WHEEL_ACT_DIM + extra["wheel"]}
+        self.nets = nn.ModuleDict({k: type_net(k, self.in_dims[k], self.OUT_DIMS[k], cfg.hidden,
+                                               recurrent=False) for k in TYPES})
+        self.norm_in = nn.ModuleDict({k: Normalizer(d) for k, d in self.in_dims.items()})
+        self.norm_out = nn.ModuleDict({k: Normalizer(d) for k, d in self.OUT_DIMS.items()})
+
+    def inputs(self, s, a, graph) -> dict:
+        """Raw node inputs: {"body": (n, 1, 5), "leg": (n, L, 6 or 9), "wheel": (n, W, 2 or 3)}."""
+        ps, pa = node_state(s, graph), sim2d.split_action(a.clamp(-1.0, 1.0), graph)
+        x = {"body": ps["body"][..., 1:],                                                   # drop x
+             "leg": torch.cat([ps["leg"], pa["leg"]], -1),
+             "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
+        if self.cfg.contact_features:
+            contact = sim2d.contact_features(s, graph)                                      # (n, L, 3), (n, W, 1)
+            x = {**x, "leg": torch.cat([x["leg"], contact["leg"]], -1),
+                 "wheel": torch.cat([x["wheel"], contact["wheel"]], -1)}
+        return x
+
+    def wire(self, graph) -> "ModelOnDesign":
+        return ModelOnDesign(self, graph)
+
+    def forward(self, s, a, graph) -> torch.Tensor:
+        """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
+        return self.wire(graph)(s, a)
+
+    def forward_node_by_node(self, s, a, graph) -> torch.Tensor:
+        """`forward` written plainly with `node_by_node`: normalised node inputs -> each node's
+        normalised change of state, un-normalised and added to s: (n, S)."""
+        raw, kinds = self.inputs(s, a, graph), [kind for kind, _ in graph.nodes]
+        x = [raw["body"][:, 0]] + list(raw["leg"].unbind(1)) + list(raw["wheel"].unbind(1))
+        x = [(xi - self.norm_in[kind].mean) / self.norm_in[kind].std for kind, xi in zip(kinds, x)]
+        out, _ = node_by_node(self.nets, graph, x, None, self.cfg.rounds)
+        return s + torch.cat([y * self.norm_out[kind].std + self.norm_out[kind].mean for kind, y in zip(kinds, out)], -1)
+
+    def change_stats(self, graph):
+        """The fitted mean and std of each state entry's change, in sim2d's flat layout: (S,) each."""
+        kinds = [k for k, _ in graph.nodes]
+        return (torch.cat([self.norm_out[k].mean for k in kinds]), torch.cat([self.norm_out[k].std for k in kinds]))
+
+    def state_error(self, s_pred, s_true, graph) -> torch.Tensor:
+        """Mean squared error of predicted against true states, each entry divided by the fitted
+        std of its change: for a one-step prediction the same number as `loss`."""
+        return ((s_pred - s_true) / self.change_stats(graph)[1]).pow(2).sum() / s_true.numel()
+
+    def loss(self, s, a, s_next, graph) -> torch.Tensor:
+        """Mean squared error of the normalised change of state, averaged over the n x S state entries."""
+        f = self.wire(graph)
+        target = (s_next - s - f.out_mean) / f.out_std                                      # (n, S)
+        return (f.delta_normalised(s, a) - target).pow(2).sum() / s.numel()
+
+    @torch.no_grad()
+    def fit_normalization(self, batches):
+        """Fit per-type input and output statistics from [(graph, s, a, s_next), ...] of tensors.
+
+        Statistics pool all modules of a type across all batches; a type absent
+        from the data keeps mean 0 and std 1.
+        """
+        xs, ds = {k: [] for k in TYPES}, {k: [] for k in TYPES}
+        for graph, s, a, s_next in batches:
+            x, d = self.inputs(s, a, graph), node_state(s_next - s, graph)
+            for k in TYPES:
+                xs[k].append(x[k].reshape(-1, self.in_dims[k]))
+                ds[k].append(d[k].reshape(-1, self.OUT_DIMS[k]))
+        for k in TYPES:
+            x, d = torch.cat(xs[k]), torch.cat(ds[k])
+            if len(x) > 1:
+                self.norm_in[k].fit(x)
+                self.norm_out[k].fit(d)
+
+
+# ----------------------------------------------------------------------------
+# The batched path training runs: the same layers wired along one design's nodes,
+# every node's own type's layer in one batched product (checked equal to node_by_node)
+# ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class NodeIndex:
     """Index tensors of one design graph, made once (`node_index`), used at every step."""
@@ -277,9 +531,6 @@ def to_flat(y, index) -> torch.Tensor:
     return y.transpose(0, 1).reshape(y.shape[1], -1)[:, index]
 
 
-# ----------------------------------------------------------------------------
-# The modular policy pi_theta(a | o, d), recurrent over time
-# ----------------------------------------------------------------------------
 OBS_WIDTH = max(BODY_OBS_DIM, LEG_OBS_DIM, WHEEL_OBS_DIM)     # node observations, zero-padded to this
 ACT_WIDTH = max(LEG_ACT_DIM, WHEEL_ACT_DIM)                   # limb actions, likewise
 
@@ -288,74 +539,6 @@ ACT_WIDTH = max(LEG_ACT_DIM, WHEEL_ACT_DIM)                   # limb actions, li
 def node_obs_scale(graph) -> torch.Tensor:
     """(N, 1, OBS_WIDTH): OBS_SCALE of each node's type, zero-padded like `nodes_first`."""
     return torch.stack([pad_to(OBS_SCALE[k], OBS_WIDTH) for k, _ in graph.nodes])[:, None]
-
-
-def sample_action(mean, log_std, deterministic: bool):
-    """a ~ N(mean, exp(log_std)^2), reparameterised (or the mean)."""
-    return mean if deterministic else mean + torch.exp(log_std) * torch.randn_like(mean)
-
-
-class ModularPolicy(nn.Module):
-    """pi_theta(a | o, d): a Gaussian over each joint's normalised velocity command.
-
-    Every node keeps a memory h, updated by its type's GRUCell after message
-    passing.  The memory is an explicit tensor (n, 1 + L + W, hidden): reset
-    with `initial_hidden`, read from what `forward`/`act` return, set by
-    passing it in (detach it between batches for truncated BPTT).  A node's
-    input is its scaled observation and its memory, so messages carry memory.
-    The log-std is state-dependent: a second output per joint, squashed into
-    [log_std_min, log_std_max] by a sigmoid (about mid-way at initialisation).
-
-    `wire(graph)` gathers the layers along a design's nodes once, for many
-    steps (`PolicyOnDesign`); `forward` and `act` wire for one step.
-    """
-
-    def __init__(self, cfg: GNNConfig = GNNConfig()):
-        super().__init__()
-        self.cfg = cfg
-        H = cfg.hidden
-        self.nets = nn.ModuleDict({                      # limb heads: mean and raw log-std per joint
-            "body": type_net("body", BODY_OBS_DIM + H, 0, H, recurrent=True),
-            "leg": type_net("leg", LEG_OBS_DIM + H, 2 * LEG_ACT_DIM, H, recurrent=True),
-            "wheel": type_net("wheel", WHEEL_OBS_DIM + H, 2 * WHEEL_ACT_DIM, H, recurrent=True)})
-
-    def initial_hidden(self, n: int, graph) -> torch.Tensor:
-        """h_0 = 0: (n, 1 + n_legs + n_wheels, hidden), node 0 the body, then the legs, then the wheels."""
-        return torch.zeros(n, 1 + graph.n_legs + graph.n_wheels, self.cfg.hidden)
-
-    def wire(self, graph) -> "PolicyOnDesign":
-        return PolicyOnDesign(self, graph)
-
-    def forward(self, obs: dict, graph, hidden):
-        """One control step from `observe`'s dict of tensors: mean (n, A), log_std (n, A), next hidden."""
-        mean, log_std, h = self.wire(graph).step(obs, hidden.transpose(0, 1))
-        return mean, log_std, h.transpose(0, 1)                                             # (n, 1 + L + W, H)
-
-    def act(self, obs: dict, graph, hidden, deterministic: bool = False):
-        """a_t ~ pi_theta(. | o_<=t), reparameterised (or the mean), and the next hidden.
-
-        Not clipped: the world clips actions to [-1, 1], and so does the model.
-        """
-        mean, log_std, hidden = self(obs, graph, hidden)
-        return sample_action(mean, log_std, deterministic), hidden                          # (n, A)
-
-    def sequence_log_prob(self, obs_seq: dict, actions_seq, graph, hidden=None):
-        """Returns (log pi(a_t | o_<=t), entropy of pi(. | o_<=t)), each (n, T), running the recurrence.
-
-        obs_seq: `observe`'s dict with a time axis, values (n, T, ...); actions_seq: (n, T, A);
-        hidden: h_0 (zeros if None).  Feeds eqn. (IL_loss) (Sec. III-E) and the entropy
-        penalty on demonstration observations (Sec. III-J).
-        """
-        n, T = actions_seq.shape[:2]
-        pi = self.wire(graph)
-        h = (self.initial_hidden(n, graph) if hidden is None else hidden).transpose(0, 1)  # (N, n, H)
-        means, log_stds = [], []
-        for t in range(T):
-            mean, log_std, h = pi.step({k: v[:, t] for k, v in obs_seq.items()}, h)
-            means.append(mean)
-            log_stds.append(log_std)
-        mean, log_std = torch.stack(means, 1), torch.stack(log_stds, 1)                    # (n, T, A)
-        return gaussian_log_prob(mean, log_std, actions_seq), gaussian_entropy(log_std)     # (n, T) x 2
 
 
 class PolicyOnDesign:
@@ -392,131 +575,6 @@ class PolicyOnDesign:
         """`ModularPolicy.act` on node-major memory."""
         mean, log_std, h = self.step(obs, h)
         return sample_action(mean, log_std, deterministic), h
-
-
-class ModularValue(nn.Module):
-    """V_psi(o, d): the value of an observation, for the model-free baseline (ppo_minimal.py).
-
-    Not in the paper, whose Algorithm 1 needs no critic.  The same modular
-    structure as the policy without the memory: one set of layers per module
-    type, encode + message passing on the design graph, a scalar per node;
-    V = the mean of the node scalars, so its scale does not grow with the
-    number of limbs.
-    """
-
-    def __init__(self, cfg: GNNConfig = GNNConfig()):
-        super().__init__()
-        self.cfg = cfg
-        self.nets = nn.ModuleDict({"body": type_net("body", BODY_OBS_DIM, 1, cfg.hidden, recurrent=False),
-                                   "leg": type_net("leg", LEG_OBS_DIM, 1, cfg.hidden, recurrent=False),
-                                   "wheel": type_net("wheel", WHEEL_OBS_DIM, 1, cfg.hidden, recurrent=False)})
-
-    def forward(self, obs: dict, graph) -> torch.Tensor:
-        """`observe`'s dict of tensors (n, ...) -> V (n,)."""
-        w = wire(self.nets, graph, self.cfg.rounds, lambda l: pad_to(l.weight, OBS_WIDTH))
-        o = nodes_first(obs, node_index(graph).kinds, OBS_WIDTH) * node_obs_scale(graph)    # (N, n, O)
-        return head(w, propagate(w, encode(w, o))).mean((0, 2))                            # (n,)
-
-
-# ----------------------------------------------------------------------------
-# The modular dynamics model f~_phi(s, a, d)
-# ----------------------------------------------------------------------------
-class Normalizer(nn.Module):
-    """Per-feature mean and std, fitted from data and saved in the state_dict."""
-
-    def __init__(self, dim: int):
-        super().__init__()
-        self.register_buffer("mean", torch.zeros(dim))
-        self.register_buffer("std", torch.ones(dim))
-
-    def fit(self, x):
-        """x: (rows, dim).  A feature that never varies gets std 1e-6 instead of 0."""
-        self.mean.copy_(x.mean(0))
-        self.std.copy_(x.std(0).clamp_min(1e-6))
-
-
-class ModularModel(nn.Module):
-    """f~_phi(s, a, d) = s + Delta(s, a, d): predicts every module's change of state.
-
-    Node inputs: body [y, pitch, vx, vy, pitch_rate] (x is left out, so the
-    prediction is the same wherever the robot is), leg [4 joint states,
-    2 actions], wheel [rate, action]; actions are clipped to [-1, 1] as the
-    world clips them.  With `contact_features` a leg also reads its foot's
-    height above the ground and velocity, and a wheel its lowest point's
-    height (sim2d.contact_features, differentiable forward kinematics).  Node outputs: body [dx, dy, dpitch, dvx, dvy,
-    dpitch_rate], leg 4 joint changes, wheel 1.  Inputs and outputs are
-    normalised per type with statistics from `fit_normalization`.
-
-    `wire(graph)` gathers the layers along a design's nodes once, for many
-    steps (`ModelOnDesign`); `forward` and `loss` wire for one call.
-    """
-
-    OUT_DIMS = {"body": BODY_DIM, "leg": LEG_DIM, "wheel": WHEEL_DIM}
-
-    def __init__(self, cfg: GNNConfig = GNNConfig()):
-        super().__init__()
-        self.cfg = cfg
-        extra = {"body": 0, "leg": 3, "wheel": 1} if cfg.contact_features else {"body": 0, "leg": 0, "wheel": 0}
-        self.in_dims = {"body": BODY_DIM - 1 + extra["body"], "leg": LEG_DIM + LEG_ACT_DIM + extra["leg"],
-                        "wheel": WHEEL_DIM + WHEEL_ACT_DIM + extra["wheel"]}
-        self.nets = nn.ModuleDict({k: type_net(k, self.in_dims[k], self.OUT_DIMS[k], cfg.hidden,
-                                               recurrent=False) for k in TYPES})
-        self.norm_in = nn.ModuleDict({k: Normalizer(d) for k, d in self.in_dims.items()})
-        self.norm_out = nn.ModuleDict({k: Normalizer(d) for k, d in self.OUT_DIMS.items()})
-
-    def inputs(self, s, a, graph) -> dict:
-        """Raw node inputs: {"body": (n, 1, 5), "leg": (n, L, 6 or 9), "wheel": (n, W, 2 or 3)}."""
-        ps, pa = node_state(s, graph), sim2d.split_action(a.clamp(-1.0, 1.0), graph)
-        x = {"body": ps["body"][..., 1:],                                                   # drop x
-             "leg": torch.cat([ps["leg"], pa["leg"]], -1),
-             "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
-        if self.cfg.contact_features:
-            contact = sim2d.contact_features(s, graph)                                      # (n, L, 3), (n, W, 1)
-            x = {**x, "leg": torch.cat([x["leg"], contact["leg"]], -1),
-                 "wheel": torch.cat([x["wheel"], contact["wheel"]], -1)}
-        return x
-
-    def wire(self, graph) -> "ModelOnDesign":
-        return ModelOnDesign(self, graph)
-
-    def forward(self, s, a, graph) -> torch.Tensor:
-        """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
-        return self.wire(graph)(s, a)
-
-    def change_stats(self, graph):
-        """The fitted mean and std of each state entry's change, in sim2d's flat layout: (S,) each."""
-        kinds = [k for k, _ in graph.nodes]
-        return (torch.cat([self.norm_out[k].mean for k in kinds]), torch.cat([self.norm_out[k].std for k in kinds]))
-
-    def state_error(self, s_pred, s_true, graph) -> torch.Tensor:
-        """Mean squared error of predicted against true states, each entry divided by the fitted
-        std of its change: for a one-step prediction the same number as `loss`."""
-        return ((s_pred - s_true) / self.change_stats(graph)[1]).pow(2).sum() / s_true.numel()
-
-    def loss(self, s, a, s_next, graph) -> torch.Tensor:
-        """Mean squared error of the normalised change of state, averaged over the n x S state entries."""
-        f = self.wire(graph)
-        target = (s_next - s - f.out_mean) / f.out_std                                      # (n, S)
-        return (f.delta_normalised(s, a) - target).pow(2).sum() / s.numel()
-
-    @torch.no_grad()
-    def fit_normalization(self, batches):
-        """Fit per-type input and output statistics from [(graph, s, a, s_next), ...] of tensors.
-
-        Statistics pool all modules of a type across all batches; a type absent
-        from the data keeps mean 0 and std 1.
-        """
-        xs, ds = {k: [] for k in TYPES}, {k: [] for k in TYPES}
-        for graph, s, a, s_next in batches:
-            x, d = self.inputs(s, a, graph), node_state(s_next - s, graph)
-            for k in TYPES:
-                xs[k].append(x[k].reshape(-1, self.in_dims[k]))
-                ds[k].append(d[k].reshape(-1, self.OUT_DIMS[k]))
-        for k in TYPES:
-            x, d = torch.cat(xs[k]), torch.cat(ds[k])
-            if len(x) > 1:
-                self.norm_in[k].fit(x)
-                self.norm_out[k].fit(d)
 
 
 @functools.lru_cache(maxsize=None)
@@ -569,154 +627,12 @@ class ModelOnDesign:
 
 
 # ----------------------------------------------------------------------------
-# Roll-outs, benchmark and entry point
+# Entry point (the benchmarks and the profiler live in bench.py)
 # ----------------------------------------------------------------------------
-def random_transitions(design: str, n_robots: int, steps: int, seed: int, episodes: bool = False):
-    """Sim transitions (s, a, s_next), (n_robots * steps, .) float32, random spline actions (Sec. III-B);
-    with `episodes`, the episodes instead: states (n_robots, steps + 1, S), actions (n_robots, steps, A)."""
-    graph = sim2d.design_graph(design)
-    actions = sim2d.random_spline_actions(np.random.default_rng(seed), n_robots, graph.action_dim, steps)
-    run = sim2d.simulate(graph, lambda obs, s, t: actions[:, t], n=n_robots, steps=steps, seed=seed)
-    states = torch.as_tensor(run.states, dtype=torch.float32)                            # (n, T + 1, S)
-    if episodes:
-        return states, torch.as_tensor(run.actions, dtype=torch.float32)
-    return (states[:, :-1].flatten(0, 1), torch.as_tensor(run.actions, dtype=torch.float32).flatten(0, 1),
-            states[:, 1:].flatten(0, 1))
-
-
-def best_seconds_per_call(fn, calls: int, repeats: int) -> float:
-    """Seconds per call of fn(): one warm-up call, then the best of `repeats` timings of `calls` calls."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(calls):
-            fn()
-        times.append((time.perf_counter() - t0) / calls)
-    return min(times)
-
-
-def bench(design: str = "hexapod", batch: int = 256, horizon: int = 20, model_batch: int = 512,
-          repeats: int = 5, cfg: GNNConfig = GNNConfig()) -> dict:
-    """Best-of-`repeats` speed of a policy update through model roll-outs, and of a model update."""
-    from modular_rlil_minimal import rollout    # Algorithm 1 lines 10-15, the code the training runs
-    torch.manual_seed(0)
-    graph = sim2d.design_graph(design)
-    states, actions, next_states = random_transitions(design, n_robots=32, steps=100, seed=0)
-    policy, model = ModularPolicy(cfg), ModularModel(cfg)
-    model.fit_normalization([(graph, states, actions, next_states)])
-    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-3, foreach=True)
-    model_opt = torch.optim.Adam(model.parameters(), lr=1e-3, foreach=True)
-
-    def policy_update():                        # eqn. (RL_loss) through the frozen model, Sec. III-F
-        s0 = states[torch.randint(len(states), (batch,))]
-        R, _, _ = rollout(policy, model, s0, policy.initial_hidden(batch, graph), graph, horizon)
-        loss = -R.mean()
-        policy_opt.zero_grad()
-        loss.backward()
-        policy_opt.step()
-
-    def model_update():
-        i = torch.randint(len(states), (model_batch,))
-        loss = model.loss(states[i], actions[i], next_states[i], graph)
-        model_opt.zero_grad()
-        loss.backward()
-        model_opt.step()
-
-    def seconds_per_call(fn, calls):
-        return best_seconds_per_call(fn, calls, repeats)
-
-    model.requires_grad_(False)                 # frozen while the policy trains; gradients flow through it
-    t_rollout = seconds_per_call(policy_update, 2)
-    model.requires_grad_(True)
-    t_fit = seconds_per_call(model_update, 20)
-    return {"rollout_s": t_rollout, "rollout_robot_steps_per_s": batch * horizon / t_rollout,
-            "model_fit_s": t_fit, "model_fit_transitions_per_s": model_batch / t_fit}
-
-
-def default_run_steps(cfg=None) -> dict:
-    """The default run's three kinds of step as functions (train.py's defaults):
-
-    policy step: L_RL over 64 leg_none_wheel robots x T = 20 steps through the frozen
-      model, plus lambda L_IL over 2 demo designs (hexapod, car) x 32 windows x 8 steps,
-      backward, clipped Adam step (Algorithm 1 lines 9-21; 120 per iteration);
-    BC step: L_IL alone, backward, Adam (line 1; 1000 before the loop);
-    model step: one-step loss on 512 leg_none_wheel transitions, backward, Adam (line 5).
-    Demonstrations are random observations and actions of the demo designs' shapes:
-    the cost does not depend on the values.
-    """
-    import demos as demo_lib
-    import modular_rlil_minimal as rlil
-    cfg = cfg or rlil.Config(train=("lnwwnl",), demos=("llllll", "wnwwnw"))
-    rng, graph = np.random.default_rng(0), sim2d.design_graph(cfg.train[0])
-    torch.manual_seed(0)
-    data = rlil.Trajectories(graph.code, *random_transitions(graph.code, 16, 50, seed=0, episodes=True))
-    policy, model = ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
-    flat = data.transitions()
-    model.members[0].fit_normalization([(graph, *flat)])
-
-    def random_demo(design):                   # (E, T, ...) random obs and actions of the design's shapes
-        g, (E, T) = sim2d.design_graph(design), (cfg.demo_episodes, cfg.demo_steps)
-        s = rng.standard_normal((E, T, g.state_dim)).astype(np.float32)
-        a = rng.uniform(-1, 1, (E, T, g.action_dim)).astype(np.float32)
-        return demo_lib.DemoData(g.code, sim2d.observe(s, g), a, s, np.zeros(E), np.zeros(E, bool))
-
-    demo_data = {d: random_demo(d) for d in cfg.demos}
-    buffers = {graph.code: rlil.init_buffer(policy, data, cfg, rng)}
-    policy_opt = torch.optim.Adam(policy.parameters(), lr=1e-4, foreach=True)
-    model_opt = torch.optim.Adam(model.parameters(), lr=1e-4, foreach=True)
-
-    def policy_step():
-        model.requires_grad_(False)
-        loss_rl = rlil.rl_loss(policy, model, buffers, cfg, rng)
-        loss_il, entropy = rlil.il_loss(policy, demo_data, cfg, rng)
-        loss = rlil.rlil_loss(loss_rl, loss_il + cfg.entropy_weight * entropy, cfg.il_weight)
-        rlil.gradient_step(policy_opt, loss, policy, cfg.grad_clip)
-        model.requires_grad_(True)
-
-    def bc_step():
-        loss, _ = rlil.il_loss(policy, demo_data, cfg, rng)
-        policy_opt.zero_grad()
-        loss.backward()
-        policy_opt.step()
-
-    def model_step():
-        loss = rlil.model_loss(model.members[0], data, flat, cfg.model_batch, 1, rng)
-        model_opt.zero_grad()
-        loss.backward()
-        model_opt.step()
-
-    return {"policy": policy_step, "bc": bc_step, "model": model_step}
-
-
-def bench_default_run(repeats: int = 3) -> dict:
-    """Best-of-`repeats` seconds per call of `default_run_steps`, and the policy step's robot-steps/s."""
-    import modular_rlil_minimal as rlil
-    cfg, steps = rlil.Config(), default_run_steps()
-
-    def seconds_per_call(fn, calls):
-        return best_seconds_per_call(fn, calls, repeats)
-
-    t_policy = seconds_per_call(steps["policy"], 3)
-    return {"policy_step_s": t_policy, "policy_robot_steps_per_s": cfg.batch * cfg.horizon / t_policy,
-            "bc_step_s": seconds_per_call(steps["bc"], 10), "model_step_s": seconds_per_call(steps["model"], 20)}
-
-
-def profile_default_run(step: str = "policy", calls: int = 3, rows: int = 25) -> str:
-    """torch.profiler's table of the operators of `calls` default-run steps, by self CPU time."""
-    from torch.profiler import ProfilerActivity, profile
-    fn = default_run_steps()[step]
-    fn()                                                                                    # warm-up
-    with profile(activities=[ProfilerActivity.CPU]) as prof:
-        for _ in range(calls):
-            fn()
-    return prof.key_averages().table(sort_by="self_cpu_time_total", row_limit=rows)
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--bench", action="store_true", help="time hexapod roll-outs and model fitting, "
-                        "and the default run's policy, BC and model steps")
+                        "and the default run's policy, BC and model steps (forwards to: python bench.py --networks)")
     parser.add_argument("--profile", choices=("policy", "bc", "model"),
                         help="print torch.profiler's operator table of 3 default-run steps of this kind")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
@@ -730,21 +646,10 @@ def main():
         g = sim2d.design_graph(design)
         print(f"{design:15s} {g.code}  nodes={1 + g.n_legs + g.n_wheels}  S={g.state_dim:2d}  "
               f"A={g.action_dim:2d}  policy={count_parameters(policy)}  model={count_parameters(model)}")
-    if args.bench:
-        r = bench()
-        print(f"hexapod, best of 5, {args.threads} threads: policy update (T=20 roll-out of 256 robots, "
-              f"backward, Adam) {1e3 * r['rollout_s']:.0f} ms; model update (512 transitions) "
-              f"{1e3 * r['model_fit_s']:.1f} ms")
-        print(f"rollout_robot_steps_per_s={r['rollout_robot_steps_per_s']:.1f} "
-              f"model_fit_transitions_per_s={r['model_fit_transitions_per_s']:.1f}")
-        d = bench_default_run()
-        print(f"default run (train.py's defaults), best of 3, {args.threads} threads: policy step "
-              f"(64 leg_none_wheel robots x T=20 through the model + IL on 2 x 32 windows x 8 steps) "
-              f"{1e3 * d['policy_step_s']:.0f} ms; BC step {1e3 * d['bc_step_s']:.1f} ms; "
-              f"model step {1e3 * d['model_step_s']:.1f} ms")
-        print(f"default_policy_robot_steps_per_s={d['policy_robot_steps_per_s']:.1f}")
-    if args.profile:
-        print(profile_default_run(args.profile))
+    if args.bench or args.profile:
+        import bench
+        bench.main((["--networks"] if args.bench else []) + (["--profile", args.profile] if args.profile else [])
+                   + ["--threads", str(args.threads)])
 
 
 if __name__ == "__main__":

@@ -7,23 +7,24 @@ in Algorithm 1's order:
 
     pretrain_bc              line 1      behavioural cloning on T_demo, eqn. (IL_loss)
     collect_random_rollouts  line 2      random spline actions (Sec. III-B)
-    train_model              line 5      modular model f~_phi on T_train (Sec. III-C); `Ensemble`
-                                         and `model_loss` hold the switches against model error
-                                         (ensemble, held-out validation, multi-step loss), off by default
+    train_model              line 5      modular model f~_phi on T_train (Sec. III-C)
     optimize_policy          lines 7-26  K steps of L = L_RL + lambda L_IL:
       init_buffer / refresh_buffer       lines 7, 22-25: initial states with hidden states
       rl_loss, rollout                   lines 9-16, eqn. (RL_loss)
       il_loss                            lines 17-19, eqn. (IL_loss), + entropy penalty (Sec. III-J)
       rlil_loss                          line 19, eqn. (RLIL_loss)
-      trust_region_loss                  not in the paper: KL to the previous iteration's policy, off by default
       AdaptiveLearningRate               Sec. III-J: validation reward, revert, lower rate
     collect_policy_rollouts  lines 27-29 policy data without and with correlated noise
     decay_il_weight          line 30
     evaluate_iteration       not in Algorithm 1: Sec. IV's distance in 200 steps, per iteration
 
-CPU, a few minutes (the command line is train.py):
+Not in the paper, each behind a switch that is off by default, and kept together
+in the last section of this file: an ensemble of models with held-out members
+(`--ensemble`, `--held-out-models`) and a soft trust region (`--trust-region`).
+
+The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
-    python train.py --train car --preset tiny          # class demo, about 12 s
+    python train.py --train car --preset tiny          # class demo
 """
 from __future__ import annotations
 
@@ -43,76 +44,67 @@ from gnn import GNNConfig, ModularModel, ModularPolicy, gaussian_kl
 
 # ----------------------------------------------------------------------------
 # Config: every knob of Algorithm 1 (train.py makes each field a flag; the
-# comment after a field is its help text)
+# comment after a field is its help text: what it is and its usual range)
 # ----------------------------------------------------------------------------
 @dataclass
 class Config:
-    """Every knob of Algorithm 1.  Defaults: the 5-minute CPU budget of the README."""
+    """Every knob of Algorithm 1.  Defaults: the README's main command."""
 
     train: tuple[str, ...] = ("leg_none_wheel",)   # d_train: design(s) trained; several sum their RL losses
     demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain RL (lambda = 0, no pre-training)
     iters: int = 5                   # outer iterations of Algorithm 1 (paper: 5)
     seed: int = 0                    # the one seed everything derives from
-    threads: int = 1                 # torch CPU threads; results depend on it (float sums round differently).
-                                     # 1: the networks' small tensors gain little from a second thread, and on
-                                     # a machine busy with other work 2 threads were 8x slower (README, Speed)
+    threads: int = 1                 # torch CPU threads; a run's digits depend on it (float sums round
+                                     # differently); 1 is fastest for these small tensors (docs/gnn.md)
     # Line 2 / Sec. III-B: random spline actions
-    random_episodes: int = 32        # random-action episodes per training design (paper: not stated)
+    random_episodes: int = 32        # random-action episodes per training design (paper: not stated); 8-64
     episode_steps: int = 100         # control steps per collected episode (paper: 100)
-    random_action_std: float = 1.0   # std of the spline knots (normalised action units)
+    random_action_std: float = 1.0   # std of the spline knots, in normalised action units; 0.5-1
     # Lines 27-29: data from the policy
     policy_episodes: int = 16        # policy episodes per design and iteration, once without and once with noise
-    policy_noise_std: float = 0.3    # knot std of the policy data's correlated noise (< random_action_std)
+    policy_noise_std: float = 0.3    # knot std of the policy data's correlated noise; below random_action_std
     # Demonstrations (Sec. III-D): the paper's 50 x 100
     demo_episodes: int = 50          # demonstration episodes per demo design (paper: 50)
     demo_steps: int = 100            # control steps per demonstration episode (paper: 100)
-    demo_noise: float = 0.15         # std of smooth noise added to the demonstrators' executed (not recorded)
-                                     # actions, so T_demo shows recoveries (DART); 0 = the paper.  0.15 took the
-                                     # cloned hexapod from 1.78 to 13.60 m in the repaired world (README, Results)
+    demo_noise: float = 0.15         # std of smooth noise on the demonstrators' executed, not recorded,
+                                     # actions, so T_demo shows recoveries (DART); 0 = the paper; 0-0.3
     # Line 1: behavioural cloning
-    bc_steps: int = 1000             # Adam steps of pre-training, 0 to skip; 300 cloned the
-                                     # hexapod gait to 4-11 m in 200 steps, 1000 to 8-11 m
+    bc_steps: int = 1000             # Adam steps of pre-training; 0 skips line 1; 300-3000
     # Line 5: model learning
-    model_steps: int = 1500          # model Adam steps at the first iteration
-    finetune_steps: int = 500        # model Adam steps in later iterations (fine-tuning)
-    model_batch: int = 512           # transitions per design per model step
-    model_lr: float = 1e-3           # model learning rate
+    model_steps: int = 1500          # model Adam steps at the first iteration; 500-5000
+    finetune_steps: int = 500        # model Adam steps in later iterations (fine-tuning); 0-2000
+    model_batch: int = 512           # transitions per design per model step; 128-2048
+    model_lr: float = 1e-3           # model learning rate; 1e-4 to 3e-3
     # Lines 7-26: policy optimisation
-    policy_steps: int = 120          # K, policy gradient steps per iteration
-    horizon: int = 20                # T, model roll-out length (truncated BPTT window)
-    batch: int = 64                  # N_batch, initial states per policy step and design
+    policy_steps: int = 120          # K, policy gradient steps per iteration; 50-1000
+    horizon: int = 20                # T, model roll-out length (truncated BPTT window); 5-50, at most
+                                     # episode_steps and eval_steps
+    batch: int = 64                  # N_batch, initial states per policy step and design; at most buffer_size
     buffer_size: int = 256           # |B|, initial states with hidden states per design
     update_rate: int = 10            # every this many steps, refresh half of B (lines 22-25)
     policy_lr: float = 1e-3          # learning rate at the start of every policy phase (adapted, Sec. III-J)
-    lr_drop: float = 0.5             # factor on the learning rate at every validation revert
+    lr_drop: float = 0.5             # factor on the learning rate at every validation revert; 0-1
     grad_clip: float = 10.0          # max gradient norm of a policy step (BPTT through T model steps)
     validate_every: int = 20         # policy steps between validation checks
     validation_multiple: int = 10    # validation set = this many batches of initial states (paper: 10)
-    il_weight: float = 10.0          # lambda at iteration 1 (eqn. RLIL_loss); with 1.0 the RL term,
-                                     # through a model that undervalues walking, wore the cloned
-                                     # hexapod gait down faster (README, Results); 1-10
-    il_decay: float = 0.5            # lambda <- il_decay * lambda after every iteration (line 30)
+    il_weight: float = 10.0          # lambda at iteration 1 (eqn. RLIL_loss); 1-10
+    il_decay: float = 0.5            # lambda <- il_decay * lambda after every iteration (line 30); 0-1
     il_batch: int = 32               # demo windows per design per step
-    il_window: int = 8               # control steps per demo window (the policy is recurrent)
-    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J)
-    # Robustness to model error (not in the paper: README, "Known deviations"); defaults = the paper
-    ensemble: int = 1                # models trained side by side on T_train (PETS, ME-TRPO); 1 = the paper
-    held_out_models: int = 0         # ensemble members the policy never trains through; the validation
-                                     # reward of Sec. III-J is judged on them (ME-TRPO, Kurutach et al. 2018)
-    model_horizon: int = 1           # steps of the model's training loss: 1 = one-step regression (paper),
-                                     # H = open-loop H-step windows of T_train (multi-step loss)
-    pessimism: float = 0.0           # reward penalty per metre of spread of the training members'
-                                     # predicted progress (MOPO, Yu et al. 2020); needs ensemble - held_out >= 2
-    trust_region: float = 0.0        # weight of a penalty on KL(previous iteration's policy || policy) on
-                                     # windows of T_train (a soft trust region, as in TRPO / PPO's KL
-                                     # penalty, Schulman et al. 2015, 2017); 0 = the paper
+    il_window: int = 8               # control steps per demo window (the policy is recurrent); at most demo_steps
+    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J); 0-0.1
     # Evaluation (Sec. IV): distance in 200 control steps
     eval_episodes: int = 8           # perturbed starts per evaluation
     eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
+    # Not in the paper (the last section of this file); the defaults are the paper
+    ensemble: int = 1                # models trained side by side on T_train (PETS, ME-TRPO); 1 = the paper
+    held_out_models: int = 0         # ensemble members the policy never trains through; the validation
+                                     # reward of Sec. III-J is judged on them (ME-TRPO); below ensemble
+    trust_region: float = 0.0        # weight of a penalty on KL(previous iteration's policy || policy)
+                                     # on windows of T_train (TRPO, PPO's KL penalty); 0 = the paper; 0-10
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
-# Named budgets.  "tiny" is the tests' budget and a class demo of about 12 s
+# Named budgets.  "tiny" is the tests' budget and a class demo
 # (`python train.py --train car --preset tiny`): the car learns to drive in it.
 PRESETS = {
     "default": {},
@@ -124,17 +116,52 @@ PRESETS = {
 }
 
 
+def from_preset(cls, presets: dict, name: str, **overrides):
+    """`cls` (a config dataclass) with a named budget of `presets`, some fields overridden."""
+    if name not in presets:
+        raise ValueError(f"unknown preset {name!r}: use one of {', '.join(presets)}")
+    return cls(**{**presets[name], **overrides})
+
+
 def preset(name: str = "default", **overrides) -> Config:
     """The Config of a named budget, with some fields overridden."""
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r}: use one of {', '.join(PRESETS)}")
-    return Config(**{**PRESETS[name], **overrides})
+    return from_preset(Config, PRESETS, name, **overrides)
+
+
+def check_ranges(cfg, at_least: dict) -> None:
+    """A one-line ValueError naming the first numeric field of `cfg` or `cfg.gnn` out of range:
+    a field named in `at_least` must be at least that, log-std bounds finite, any other positive."""
+    numeric = [(f.name, getattr(cfg, f.name)) for f in dataclasses.fields(cfg)
+               if f.name not in ("train", "demos", "gnn")]
+    numeric += [(f.name, getattr(cfg.gnn, f.name)) for f in dataclasses.fields(cfg.gnn)]
+    for name, value in numeric:
+        if isinstance(value, bool):
+            continue
+        if name.startswith("log_std"):
+            ok, accepted = math.isfinite(value), "a finite number"
+        elif name in at_least:
+            ok, accepted = math.isfinite(value) and value >= at_least[name], f"at least {at_least[name]}"
+        else:
+            ok, accepted = math.isfinite(value) and value > 0, "positive"
+        if not ok:
+            raise ValueError(f"{name} must be {accepted}, got {value}")
+    if cfg.gnn.log_std_min >= cfg.gnn.log_std_max:
+        raise ValueError(f"log_std_min ({cfg.gnn.log_std_min}) must be below log_std_max ({cfg.gnn.log_std_max})")
+
+
+def design_codes(field_name: str, designs) -> tuple[str, ...]:
+    """Names or codes -> six-letter codes, each design once (a one-line ValueError otherwise)."""
+    codes = tuple(sim2d.parse_design(d) for d in designs)
+    for code in set(codes):
+        if codes.count(code) > 1:
+            raise ValueError(f"{field_name}: {sim2d.design_name(code)} is named twice; name each design once")
+    return codes
 
 
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
-    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2, "buffer_size": 2, "rounds": 0,
-    "held_out_models": 0, "pessimism": 0.0, "trust_region": 0.0}
+    "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
+    "buffer_size": 2, "rounds": 0, "held_out_models": 0, "trust_region": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -142,37 +169,22 @@ def validate_config(cfg: Config) -> Config:
     field that is out of range and what is accepted."""
     if not cfg.train:
         raise ValueError("train: name at least one design to train")
-    cfg = dataclasses.replace(cfg, train=tuple(sim2d.parse_design(d) for d in cfg.train),
-                              demos=tuple(sim2d.parse_design(d) for d in cfg.demos))
+    cfg = dataclasses.replace(cfg, train=design_codes("train", cfg.train), demos=design_codes("demos", cfg.demos))
     for design in cfg.demos:
         demo_lib.check_demonstrable(sim2d.design_graph(design))
-    numeric = [(f.name, getattr(cfg, f.name)) for f in dataclasses.fields(cfg) if f.name not in ("train", "demos", "gnn")]
-    numeric += [(f.name, getattr(cfg.gnn, f.name)) for f in dataclasses.fields(cfg.gnn)]
-    for name, value in numeric:
-        low = AT_LEAST.get(name)
-        if isinstance(value, bool):
-            continue
-        if name.startswith("log_std"):
-            ok, accepted = math.isfinite(value), "a finite number"
-        elif low is None:
-            ok, accepted = math.isfinite(value) and value > 0, "positive"
-        else:
-            ok, accepted = math.isfinite(value) and value >= low, f"at least {low}"
-        if not ok:
-            raise ValueError(f"{name} must be {accepted}, got {value}")
+    check_ranges(cfg, AT_LEAST)
     if cfg.lr_drop > 1 or cfg.il_decay > 1:
         raise ValueError(f"lr_drop and il_decay must be at most 1, got {cfg.lr_drop} and {cfg.il_decay}")
+    if cfg.horizon > min(cfg.episode_steps, cfg.eval_steps):
+        raise ValueError(f"horizon ({cfg.horizon}) must not exceed episode_steps ({cfg.episode_steps}) "
+                         f"or eval_steps ({cfg.eval_steps})")
+    if cfg.batch > cfg.buffer_size:
+        raise ValueError(f"batch ({cfg.batch}) must not exceed buffer_size ({cfg.buffer_size}): a batch draws from B")
+    if cfg.il_window > cfg.demo_steps:
+        raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
     if cfg.held_out_models >= cfg.ensemble:
         raise ValueError(f"held_out_models ({cfg.held_out_models}) must be below ensemble ({cfg.ensemble}): "
                          "the policy needs a model to train through")
-    if cfg.pessimism > 0 and cfg.ensemble - cfg.held_out_models < 2:
-        raise ValueError("pessimism needs at least 2 ensemble members that are not held out")
-    if cfg.model_horizon > min(cfg.episode_steps, cfg.model_batch):
-        raise ValueError(f"model_horizon ({cfg.model_horizon}) must not exceed episode_steps or model_batch")
-    if cfg.il_window > cfg.demo_steps:
-        raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
-    if cfg.gnn.log_std_min >= cfg.gnn.log_std_max:
-        raise ValueError(f"log_std_min ({cfg.gnn.log_std_min}) must be below log_std_max ({cfg.gnn.log_std_max})")
     return cfg
 
 
@@ -226,7 +238,7 @@ class PolicyActor:
         graph, self.noise = sim2d.design_graph(design), noise
         with torch.no_grad():
             self.policy = policy.wire(graph)                              # the weights do not change in an episode
-        self.hidden = policy.initial_hidden(n, graph).transpose(0, 1)     # node-major, (nodes, n, H)
+        self.hidden = policy.initial_hidden(n, graph)                     # (nodes, n, H)
 
     @torch.no_grad()
     def __call__(self, obs: dict, state, t: int) -> np.ndarray:
@@ -248,144 +260,81 @@ def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
 
 
 # ----------------------------------------------------------------------------
-# Line 5: the model (an ensemble of one in the paper)
+# Line 5: the model f~_phi
 # ----------------------------------------------------------------------------
-class Ensemble(torch.nn.Module):
-    """f~_phi as `ensemble` modular models trained side by side on T_train.
-
-    With one member this is the paper's model.  `wire(graph)` is the model
-    the policy trains through: calling it steps a random one of the first
-    `ensemble - held_out_models` members at every step (PETS, MBPO), so no single
-    member's error can be exploited for a whole roll-out.  The last
-    `held_out_models` members are never trained through; `validation_models`
-    returns them (ME-TRPO), or the training members when none is held out.
-    """
-
-    def __init__(self, cfg: Config):
-        super().__init__()
-        self.members = torch.nn.ModuleList(ModularModel(cfg.gnn) for _ in range(cfg.ensemble))
-        self.n_train = cfg.ensemble - cfg.held_out_models
-
-    def wire(self, graph) -> "EnsembleOnDesign":
-        return EnsembleOnDesign(self, graph)
-
-    def validation_models(self) -> list:
-        return list(self.members[self.n_train:]) or list(self.members[:self.n_train])
+def model_loss(model: ModularModel, design: str, transitions, n: int, rng: np.random.Generator) -> torch.Tensor:
+    """Sec. III-C: one-step regression of the state change on n random transitions of one design.
+    transitions: (s, a, s') of T_train, `Trajectories.transitions()`, made once per phase."""
+    s, a, s_next = transitions
+    i = torch.from_numpy(rng.integers(len(s), size=n))
+    return model.loss(s[i], a[i], s_next[i], sim2d.design_graph(design))
 
 
-class EnsembleOnDesign:
-    """The ensemble wired for one design's roll-outs: every member's gnn.ModelOnDesign."""
-
-    def __init__(self, ensemble: Ensemble, graph):
-        self.members, self.n_train = [m.wire(graph) for m in ensemble.members], ensemble.n_train
-
-    def pick(self) -> int:
-        """Which of the first n_train members predicts this step: 0, or a random one."""
-        return 0 if self.n_train == 1 else int(torch.randint(self.n_train, ()))
-
-    def __call__(self, s, a):                              # s~' = f~(s~, a): (B, S)
-        return self.members[self.pick()](s, a)
-
-    def step_with_spread(self, s, a):
-        """A random training member's prediction (B, S), and the std over the training members of
-        the predicted progress (B,) (m): how much the members disagree about this step."""
-        preds = torch.stack([m(s, a) for m in self.members[:self.n_train]])                # (E, B, S)
-        return preds[self.pick()], preds[..., 0].std(0)
-
-
-def model_loss(model: ModularModel, traj: Trajectories, transitions, n: int, horizon: int, rng) -> torch.Tensor:
-    """The model's training loss on one design: one-step regression of the state change on n
-    random transitions (horizon 1, Sec. III-C), or the error of open-loop predictions along
-    n // horizon random windows of `horizon` steps, each step fed the model's own previous
-    prediction and the recorded action (a multi-step loss; equal to the one-step loss at 1).
-    transitions: traj.transitions(), made once per phase."""
-    graph = sim2d.design_graph(traj.design)
-    if horizon == 1:
-        s, a, s_next = transitions
-        i = torch.from_numpy(rng.integers(len(s), size=n))
-        return model.loss(s[i], a[i], s_next[i], graph)
-    episodes, steps = traj.actions.shape[:2]
-    e = torch.from_numpy(rng.integers(episodes, size=n // horizon))
-    t0 = torch.from_numpy(rng.integers(steps - horizon + 1, size=n // horizon))
-    s, loss, f = traj.states[e, t0], 0.0, model.wire(graph)                             # (n / H, S)
-    for h in range(horizon):
-        s = f(s, traj.actions[e, t0 + h])                                               # open loop
-        loss = loss + model.state_error(s, traj.states[e, t0 + h + 1], graph)
-    return loss / horizon
-
-
-def train_model(models: Ensemble, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
+def train_model(model, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
                 first: bool) -> float:
     """Algorithm 1 line 5 (Sec. III-C): supervised regression of the state change on T_train.
 
     At the first iteration the input and output normalisation is fitted to
-    T_train and the models take `model_steps` Adam steps; later iterations
-    fine-tune them for `finetune_steps`.  Each step sums, over ensemble members
-    and training designs, the loss of a mini-batch of its own.  Returns the
-    mean loss per member (normalised MSE) over the last 10 % of the steps
-    (NaN if no steps).
+    T_train and the model takes `model_steps` Adam steps; later iterations
+    fine-tune it for `finetune_steps`.  Each step sums the loss of a mini-batch
+    per training design (and per member of an `Ensemble`, each its own
+    mini-batch).  Returns the mean loss (normalised MSE, per member) over the
+    last 10 % of the steps (NaN if no steps).
     """
     flat = {d: traj.transitions() for d, traj in data.items()}             # (E*T, S), (E*T, A), (E*T, S)
+    models = members(model)                                                 # [model] in the paper
     if first:
-        for model in models.members:
-            model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
+        for m in models:
+            m.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
     steps = cfg.model_steps if first else cfg.finetune_steps
-    opt = torch.optim.Adam(models.parameters(), lr=cfg.model_lr, foreach=True)   # foreach: one multi-tensor
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.model_lr, foreach=True)   # foreach: one multi-tensor
     # update of all parameters instead of a loop over them; the same numbers, less per-step overhead
     losses = []
     for _ in range(steps):
         loss = 0.0
-        for model in models.members:
-            for design, traj in data.items():
-                loss = loss + model_loss(model, traj, flat[design], cfg.model_batch, cfg.model_horizon, rng)
+        for m in models:
+            for design in data:
+                loss = loss + model_loss(m, design, flat[design], cfg.model_batch, rng)
         opt.zero_grad()
         loss.backward()
         opt.step()
-        losses.append(loss.item() / len(models.members))
+        losses.append(loss.item() / len(models))
     return float(np.mean(losses[-max(1, steps // 10):])) if losses else float("nan")
 
 
 # ----------------------------------------------------------------------------
 # The losses: eqn. (RL_loss), eqn. (IL_loss) with the entropy penalty, eqn. (RLIL_loss)
 # ----------------------------------------------------------------------------
-def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int,
-            deterministic: bool = False, pessimism: float = 0.0):
+def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int, deterministic: bool = False):
     """Algorithm 1 lines 10-15: a ~ pi(a | O(s~)), s~' = f~(s~, a), R = sum over the T steps of r(s~, a, s~').
 
-    s0: (B, S) initial states, h0: (B, nodes, H) policy hidden states.  Returns
+    s0: (B, S) initial states, h0: (nodes, B, H) policy hidden states.  Returns
     the summed reward R (B,), the final state and hidden state.  Actions are
     reparameterised samples, so dR/dtheta flows through every model step.
     The model clips actions to [-1, 1] like the simulator; the reward's effort
     term sees them unclipped, which keeps a gradient that pulls saturated
-    commands back into range.  With `pessimism` > 0 (an Ensemble), each step's
-    reward loses pessimism x the members' spread of predicted progress (MOPO).
+    commands back into range.
     """
     pi, f = policy.wire(graph), model.wire(graph)           # weights gathered along the design's nodes once
-    states, actions, penalty, h = [s0], [], 0.0, h0.transpose(0, 1)             # h node-major: (nodes, B, H)
+    states, actions, h = [s0], [], h0
     for _ in range(horizon):
         s = states[-1]
         noise = None if deterministic else sim2d.obs_noise_like(s, graph)
-        a, h = pi.act(sim2d.observe(s, graph, noise), h, deterministic=deterministic)
-        if pessimism:
-            s_next, spread = f.step_with_spread(s, a)                           # (B, S), (B,)
-            penalty = penalty + pessimism * spread
-        else:
-            s_next = f(s, a)                                                    # (B, S)
-        states.append(s_next)
+        a, h = pi.act(sim2d.observe(s, graph, noise), h, deterministic=deterministic)   # (B, A), (nodes, B, H)
+        states.append(f(s, a))                                                  # (B, S)
         actions.append(a)
     s = torch.stack(states)                                                     # (T + 1, B, S)
-    total = sim2d.reward(s[:-1], torch.stack(actions), s[1:], graph).sum(0) - penalty   # (B,)
-    return total, states[-1], h.transpose(0, 1)
+    total = sim2d.reward(s[:-1], torch.stack(actions), s[1:], graph).sum(0)     # (B,)
+    return total, states[-1], h
 
 
-def rl_loss(policy: ModularPolicy, model: Ensemble, buffers: dict, cfg: Config, rng) -> torch.Tensor:
+def rl_loss(policy: ModularPolicy, model, buffers: dict, cfg: Config, rng) -> torch.Tensor:
     """Algorithm 1 lines 9-16, eqn. (RL_loss): L_RL = -R, the batch mean of the T-step model
     return from initial states and hidden states sampled from B, summed over d_train."""
     loss = 0.0
     for design, buffer in buffers.items():
         s0, h0 = buffer.sample(cfg.batch, rng)                                          # line 9
-        R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon,    # lines 10-15
-                          pessimism=cfg.pessimism)
+        R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon)   # lines 10-15
         loss = loss - R.mean()                                                          # line 16
     return loss
 
@@ -412,36 +361,6 @@ def il_loss(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.
     return loss, entropy
 
 
-def trust_region_loss(policy: ModularPolicy, anchor: ModularPolicy, data: dict[str, Trajectories],
-                      cfg: Config, rng: np.random.Generator) -> torch.Tensor:
-    """Not in the paper: KL(pi_anchor || pi_theta), the anchor being the policy at the start of this
-    policy phase (the previous iteration's policy), on the observations of `il_batch` windows of
-    `il_window` steps of T_train per training design, both policies run from zero hidden states.
-    Mean over windows and steps, summed over designs.  Penalising it keeps each iteration's policy
-    near the one whose data T_train holds (a soft trust region: TRPO's constraint, PPO's KL penalty,
-    Schulman et al. 2015, 2017), so the RL term cannot walk far into states the model has not seen."""
-    loss = 0.0
-    for design, traj in data.items():
-        graph = sim2d.design_graph(design)
-        episodes, steps = traj.actions.shape[:2]
-        e = torch.from_numpy(rng.integers(episodes, size=cfg.il_batch))
-        t0 = torch.from_numpy(rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch))
-        obs = sim2d.observe(traj.states[e[:, None], t0[:, None] + torch.arange(cfg.il_window)], graph)
-        h = h_anchor = policy.initial_hidden(cfg.il_batch, graph).transpose(0, 1)  # (nodes, batch, H)
-        pi = policy.wire(graph)
-        with torch.no_grad():
-            pi_anchor = anchor.wire(graph)
-        kl = 0.0
-        for t in range(cfg.il_window):
-            o = {k: v[:, t] for k, v in obs.items()}                                # (batch, ...)
-            mean, log_std, h = pi.step(o, h)
-            with torch.no_grad():
-                mean_a, log_std_a, h_anchor = pi_anchor.step(o, h_anchor)
-            kl = kl + gaussian_kl(mean_a, log_std_a, mean, log_std).mean()
-        loss = loss + kl / cfg.il_window
-    return loss
-
-
 def rlil_loss(loss_rl, loss_il, il_weight: float):
     """eqn. (RLIL_loss): L = L_RL + lambda L_IL."""
     return loss_rl + il_weight * loss_il
@@ -466,14 +385,14 @@ def pretrain_bc(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.ran
 # ----------------------------------------------------------------------------
 @dataclass
 class Buffer:
-    """B: initial states (n, S) with policy hidden states (n, nodes, H) for one design."""
+    """B for one design: initial states (n, S) with policy hidden states (nodes, n, H)."""
 
     states: torch.Tensor
     hidden: torch.Tensor
 
     def sample(self, n: int, rng: np.random.Generator):
         i = torch.from_numpy(rng.integers(len(self.states), size=n))
-        return self.states[i], self.hidden[i]
+        return self.states[i], self.hidden[:, i]                                # (n, S), (nodes, n, H)
 
 
 def sample_sim_states(data: Trajectories, n: int, rng: np.random.Generator) -> torch.Tensor:
@@ -495,21 +414,21 @@ def refresh_buffer(buffer: Buffer, policy, model, data: Trajectories, cfg: Confi
     graph, half = sim2d.design_graph(data.design), cfg.buffer_size // 2
     s0 = sample_sim_states(data, cfg.buffer_size - half, rng)
     _, s, h = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon // 2)
-    buffer.states[half:], buffer.hidden[half:] = s, h
+    buffer.states[half:], buffer.hidden[:, half:] = s, h
 
 
 @torch.no_grad()
-def validation_reward(policy, models: Ensemble, val_states: dict, cfg: Config) -> float:
+def validation_reward(policy, model, val_states: dict, cfg: Config) -> float:
     """Sec. III-J: net reward of T deterministic model steps from a fixed, large set of states,
-    summed over designs; with an ensemble, the mean over `models.validation_models()`."""
-    total = 0.0
-    for model in models.validation_models():
+    summed over designs (with an `Ensemble`, the mean over its `validation_models`)."""
+    total, judges = 0.0, validation_models(model)                          # [model] in the paper
+    for m in judges:
         for design, s0 in val_states.items():
             graph = sim2d.design_graph(design)
-            R, _, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon,
+            R, _, _ = rollout(policy, m, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon,
                               deterministic=True)
             total += R.mean().item()
-    return total / len(models.validation_models())
+    return total / len(judges)
 
 
 class AdaptiveLearningRate:
@@ -558,10 +477,9 @@ def gradient_step(opt, loss, policy, grad_clip: float) -> bool:
     return True
 
 
-def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Trajectories],
+def optimize_policy(policy: ModularPolicy, model, data: dict[str, Trajectories],
                     demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator) -> dict:
-    """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen
-    (+ trust_region x `trust_region_loss` when that switch is on).
+    """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen.
 
     Returns the phase's metrics: RL and IL loss (means of the last 10 steps;
     il_loss None without IL), the last passed validation reward, reverts and
@@ -570,7 +488,7 @@ def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Traj
     model.requires_grad_(False)                                                   # frozen in this phase
     buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}                # line 7
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
-    anchor = copy.deepcopy(policy).requires_grad_(False) if cfg.trust_region else None
+    anchor = copy.deepcopy(policy).requires_grad_(False) if cfg.trust_region else None  # not in the paper
     opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr, foreach=True)
     lr_rule = AdaptiveLearningRate(policy, opt, validation_reward(policy, model, val_states, cfg), cfg.lr_drop)
     rl_values, il_values = [], []
@@ -581,7 +499,7 @@ def optimize_policy(policy: ModularPolicy, model: Ensemble, data: dict[str, Traj
             loss_il, entropy = il_loss(policy, demo_data, cfg, rng)                                # line 18
             loss = rlil_loss(loss_rl, loss_il + cfg.entropy_weight * entropy, il_weight)          # line 19
             il_values.append(loss_il.item())
-        if anchor is not None:                                    # not in the paper: a soft trust region
+        if anchor is not None:                                                     # not in the paper
             loss = loss + cfg.trust_region * trust_region_loss(policy, anchor, data, cfg, rng)
         if not gradient_step(opt, loss, policy, cfg.grad_clip):                                    # line 21
             lr_rule.revert()                                  # a non-finite loss or gradient: never step on it
@@ -613,12 +531,11 @@ def evaluate_policy(policy: ModularPolicy, design: str, cfg: Config, seed: int) 
 
 
 @torch.no_grad()
-def model_bias(policy: ModularPolicy, models: Ensemble, design: str, run: sim2d.Episodes,
-               cfg: Config) -> dict:
+def model_bias(policy: ModularPolicy, model, design: str, run: sim2d.Episodes, cfg: Config) -> dict:
     """How far the model flatters the policy, from the evaluation starts, over the first T steps:
 
     model_progress_m: progress (m) predicted by rolling the policy out in the model
-      (deterministic; with an ensemble, the mean over its members);
+      (deterministic; with an `Ensemble`, the mean over its members);
     sim_progress_m: progress measured in the simulator over the same steps;
     model_path_error_m: |x~_T - x_T| when the model replays the simulator's own
       actions open-loop: the model's error along the policy's simulated path.
@@ -630,10 +547,10 @@ def model_bias(policy: ModularPolicy, models: Ensemble, design: str, run: sim2d.
     states = torch.as_tensor(run.states, dtype=torch.float32)                     # (n, steps + 1, S)
     actions = torch.as_tensor(run.actions, dtype=torch.float32)                   # (n, steps, A)
     s0, predicted, replayed = states[:, 0], [], []
-    for model in models.members:
-        _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
+    for m in members(model):                                                      # [model] in the paper
+        _, s_T, _ = rollout(policy, m, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
         predicted.append((s_T[:, 0] - s0[:, 0]).mean())
-        s, f = s0, model.wire(graph)
+        s, f = s0, m.wire(graph)
         for t in range(T):
             s = f(s, actions[:, t])
         replayed.append((s[:, 0] - states[:, T, 0]).abs().mean())
@@ -657,9 +574,9 @@ def eval_seed(cfg: Config) -> int:
     return 1_000_003 + cfg.seed
 
 
-def evaluate_iteration(policy, model, designs, cfg: Config, i: int) -> dict:
+def evaluate_iteration(policy, model, designs: list[str], cfg: Config, i: int) -> dict:
     """The metrics row of iteration i: distance in the simulator over every training design
-    (mean, min, max), and from iteration 1 on `model_bias`'s pair, averaged over designs."""
+    (mean, min, max), and from iteration 1 on `model_bias`'s figures, averaged over designs."""
     results = {d: evaluate_policy(policy, d, cfg, eval_seed(cfg)) for d in designs}
     dist = np.concatenate([r.distance_m for r in results.values()])
     row = {"iteration": i, "distance_m": float(dist.mean()), "distance_min_m": float(dist.min()),
@@ -679,7 +596,7 @@ class Run:
 
     cfg: Config
     policy: ModularPolicy
-    model: Ensemble                  # f~_phi (one member in the paper)
+    model: torch.nn.Module           # f~_phi: a ModularModel (an `Ensemble` with --ensemble > 1)
     data: dict                       # T_train: design code -> Trajectories
     il_weight: float                 # lambda for the next iteration
     rng: np.random.Generator
@@ -743,17 +660,18 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
     called (train.py saves checkpoints and plots there).  Returns the Run.
     """
     torch.set_num_threads(cfg.threads)
+    designs = [sim2d.parse_design(d) for d in cfg.train]                                          # d_train
     if run is None:
         t0 = time.perf_counter()
         rng = seed_everything(cfg.seed)
-        policy, model = ModularPolicy(cfg.gnn), Ensemble(cfg)
+        policy, model = ModularPolicy(cfg.gnn), make_model(cfg)
         if demo_data and cfg.bc_steps:                                                             # line 1
             log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
                 f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
-        data = {sim2d.parse_design(d): collect_random_rollouts(d, cfg, rng) for d in cfg.train}   # line 2
+        data = {d: collect_random_rollouts(d, cfg, rng) for d in designs}                         # line 2
         log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
         run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
-        row = evaluate_iteration(policy, model, data, cfg, 0)
+        row = evaluate_iteration(policy, model, designs, cfg, 0)
         record(run, {**row, "il_weight": run.il_weight, "sim_steps": sim_steps(cfg, 0),
                      "seconds": time.perf_counter() - t0}, log)
         log(f"iteration 0: {row['distance_m']:.2f} m in {cfg.eval_steps} steps")
@@ -764,19 +682,19 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
     for i in range(run.iteration + 1, cfg.iters + 1):                                              # line 3
         t0, il_weight = time.perf_counter(), run.il_weight
         # -- lines 4-5: model learning phase --
-        model_loss = train_model(model, data, cfg, rng, first=(i == 1))                            # line 5
+        fit_loss = train_model(model, data, cfg, rng, first=(i == 1))                              # line 5
         # -- lines 6-26: policy optimisation phase --
         phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)               # lines 7-26
         # -- lines 27-29: data collection --
-        for design in data:
+        for design in designs:
             data[design] = data[design] + collect_policy_rollouts(policy, design, cfg, rng)        # lines 28-29
         run.il_weight = decay_il_weight(il_weight, cfg)                                            # line 30
         run.iteration = i
         # -- evaluation in the simulator (Sec. IV), not part of Algorithm 1 --
-        row = evaluate_iteration(policy, model, data, cfg, i)
-        record(run, {**row, "il_weight": il_weight, "model_loss": model_loss, **phase,
+        row = evaluate_iteration(policy, model, designs, cfg, i)
+        record(run, {**row, "il_weight": il_weight, "model_loss": fit_loss, **phase,
                      "sim_steps": sim_steps(cfg, i), "seconds": time.perf_counter() - t0}, log)
-        log(f"iter {i}  model loss {model_loss:.4f}; policy: RL loss {phase['rl_loss']:.3f}, "
+        log(f"iter {i}  model loss {fit_loss:.4f}; policy: RL loss {phase['rl_loss']:.3f}, "
             f"{phase['reverts']} reverts, lr {phase['lr']:.1e}; {row['distance_m']:.2f} m "
             f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "
             f"first {cfg.horizon} steps: model {row['model_progress_m']:.2f} m, "
@@ -785,3 +703,86 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         if on_iteration:
             on_iteration(run)
     return run
+
+
+# ----------------------------------------------------------------------------
+# Not in the paper: switches against model error, all off by default
+# (docs/ablations.md has what each measured)
+# ----------------------------------------------------------------------------
+def make_model(cfg: Config):
+    """f~_phi: one ModularModel (the paper), or an `Ensemble` of `cfg.ensemble` of them."""
+    return ModularModel(cfg.gnn) if cfg.ensemble == 1 else Ensemble(cfg)
+
+
+def members(model) -> list:
+    """The models trained on T_train: [model], or an `Ensemble`'s members."""
+    return list(model.members) if isinstance(model, Ensemble) else [model]
+
+
+def validation_models(model) -> list:
+    """The models the validation reward (Sec. III-J) is judged on: [model], or an `Ensemble`'s
+    held-out members (its training members when none is held out)."""
+    if not isinstance(model, Ensemble):
+        return [model]
+    return list(model.members[model.n_train:]) or list(model.members[:model.n_train])
+
+
+class Ensemble(torch.nn.Module):
+    """f~_phi as `cfg.ensemble` modular models trained side by side on T_train, each on its own
+    mini-batches (PETS, Chua et al. 2018; ME-TRPO, Kurutach et al. 2018).
+
+    `wire(graph)` is the model the policy trains through: calling it steps a
+    random one of the first `ensemble - held_out_models` members at every step
+    (PETS, MBPO), so no single member's error can be exploited for a whole
+    roll-out.  The last `held_out_models` members are never trained through;
+    `validation_models` returns them (ME-TRPO).
+    """
+
+    def __init__(self, cfg: Config):
+        super().__init__()
+        self.members = torch.nn.ModuleList(ModularModel(cfg.gnn) for _ in range(cfg.ensemble))
+        self.n_train = cfg.ensemble - cfg.held_out_models
+
+    def wire(self, graph) -> "EnsembleOnDesign":
+        return EnsembleOnDesign(self, graph)
+
+
+class EnsembleOnDesign:
+    """The ensemble wired for one design's roll-outs: every member's gnn.ModelOnDesign."""
+
+    def __init__(self, ensemble: Ensemble, graph):
+        self.members, self.n_train = [m.wire(graph) for m in ensemble.members], ensemble.n_train
+
+    def __call__(self, s, a):                              # s~' = f~(s~, a): (B, S)
+        k = 0 if self.n_train == 1 else int(torch.randint(self.n_train, ()))   # a random training member
+        return self.members[k](s, a)
+
+
+def trust_region_loss(policy: ModularPolicy, anchor: ModularPolicy, data: dict[str, Trajectories],
+                      cfg: Config, rng: np.random.Generator) -> torch.Tensor:
+    """KL(pi_anchor || pi_theta), the anchor being the policy at the start of this policy phase
+    (the previous iteration's policy), on the observations of `il_batch` windows of `il_window`
+    steps of T_train per training design, both policies run from zero hidden states.  Mean over
+    windows and steps, summed over designs.  Penalising it keeps each iteration's policy near the
+    one whose data T_train holds (a soft trust region: TRPO's constraint, PPO's KL penalty,
+    Schulman et al. 2015, 2017), so the RL term cannot walk far into states the model has not seen."""
+    loss = 0.0
+    for design, traj in data.items():
+        graph = sim2d.design_graph(design)
+        episodes, steps = traj.actions.shape[:2]
+        e = torch.from_numpy(rng.integers(episodes, size=cfg.il_batch))
+        t0 = torch.from_numpy(rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch))
+        obs = sim2d.observe(traj.states[e[:, None], t0[:, None] + torch.arange(cfg.il_window)], graph)
+        h = h_anchor = policy.initial_hidden(cfg.il_batch, graph)                   # (nodes, batch, H)
+        pi = policy.wire(graph)
+        with torch.no_grad():
+            pi_anchor = anchor.wire(graph)
+        kl = 0.0
+        for t in range(cfg.il_window):
+            o = {k: v[:, t] for k, v in obs.items()}                                # (batch, ...)
+            mean, log_std, h = pi.step(o, h)
+            with torch.no_grad():
+                mean_a, log_std_a, h_anchor = pi_anchor.step(o, h_anchor)
+            kl = kl + gaussian_kl(mean_a, log_std_a, mean, log_std).mean()
+        loss = loss + kl / cfg.il_window
+    return loss

@@ -1,4 +1,4 @@
-"""PPO on the modular policy: the model-free baseline the paper does not show (issue #13).
+"""PPO on the modular policy: the model-free baseline the paper does not show.
 
 Schulman et al. 2017, "Proximal Policy Optimization Algorithms" (arXiv:1707.06347):
 the clipped surrogate objective (eqn. 7), its sum with a value loss and an
@@ -22,12 +22,13 @@ The policy's memory: `Memoryless` runs gnn.ModularPolicy with its GRU memory
 reset to h = 0 before every step, in training and in evaluation, so every
 sample's log-probability is one batched forward pass.  Handling the memory as
 CleanRL's LSTM PPO does (re-running each robot's sequence in order for every
-minibatch) cost 20-40x more per minibatch on this CPU (`python ppo_minimal.py
---bench`; README, "The model-free baseline: PPO").
+minibatch) cost 20-40x more per minibatch on this CPU (`python bench.py
+--ppo`; docs/ppo.md).
 
 CPU, one thread (the command line is train.py):
-    python train.py --train hexapod --method ppo          # 2 M steps, 2.2 min per 100 k (15 m at 614 k, seed 0)
-    python train.py --train car --method ppo --preset tiny        # the car learns to drive, ~10 s
+    python train.py --train hexapod --method ppo                  # 2 M simulator steps (docs/ppo.md)
+    python train.py --train car --method ppo --preset tiny        # the car learns to drive
+    python bench.py --ppo        # one iteration's collection and update, timed (or: ppo_minimal.py --bench)
 """
 from __future__ import annotations
 
@@ -43,7 +44,8 @@ import torch
 import sim2d
 from gnn import (GNNConfig, ModularPolicy, ModularValue, PolicyOnDesign, gaussian_entropy, gaussian_log_prob,
                  sample_action)
-from modular_rlil_minimal import eval_seed, evaluate_policy, new_seed, record, seed_everything
+from modular_rlil_minimal import (check_ranges, eval_seed, evaluate_policy, from_preset, new_seed, record,
+                                  seed_everything)
 
 
 # ----------------------------------------------------------------------------
@@ -75,7 +77,7 @@ class PPOConfig:
     max_grad_norm: float = 0.5       # gradient-norm clip of every Adam step
     norm_adv: bool = True            # normalise advantages per minibatch
     init_std: float = 0.6            # the policy's std at the start (its log-std heads' bias; gnn's
-                                     # initialisation gives 0.29); 0.3-1 (README, PPO: Tuning)
+                                     # initialisation gives 0.29); 0.3-1 (docs/ppo.md, Tuning)
     eval_every: int = 50_000         # simulator steps between evaluations (rounded to whole iterations)
     # Evaluation (Sec. IV of Whitman & Choset): distance in 200 control steps, as for Algorithm 1
     eval_episodes: int = 8           # perturbed starts per evaluation
@@ -92,9 +94,10 @@ PRESETS = {   # "tiny": the tests' budget, a class demo in which the car learns 
 
 def preset(name: str = "default", **overrides) -> PPOConfig:
     """The PPOConfig of a named budget, with some fields overridden."""
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r}: use one of {', '.join(PRESETS)}")
-    return PPOConfig(**{**PRESETS[name], **overrides})
+    return from_preset(PPOConfig, PRESETS, name, **overrides)
+
+
+AT_LEAST = {"seed": 0, "ent_coef": 0.0, "vf_coef": 0.0, "rounds": 0}   # the rest must be positive
 
 
 def validate_config(cfg: PPOConfig) -> PPOConfig:
@@ -102,25 +105,11 @@ def validate_config(cfg: PPOConfig) -> PPOConfig:
     if len(cfg.train) != 1:
         raise ValueError(f"train: PPO trains one design, got {len(cfg.train)}")
     cfg = dataclasses.replace(cfg, train=(sim2d.parse_design(cfg.train[0]),))
-    at_least = {"seed": 0, "ent_coef": 0.0, "vf_coef": 0.0, "rounds": 0}
-    for name, value in [(f.name, getattr(cfg, f.name)) for f in dataclasses.fields(cfg) if f.name not in ("train", "gnn")] + \
-                       [(f.name, getattr(cfg.gnn, f.name)) for f in dataclasses.fields(cfg.gnn)]:
-        if isinstance(value, bool):
-            continue
-        if name.startswith("log_std"):
-            ok, accepted = math.isfinite(value), "a finite number"
-        elif name in at_least:
-            ok, accepted = math.isfinite(value) and value >= at_least[name], f"at least {at_least[name]}"
-        else:
-            ok, accepted = math.isfinite(value) and value > 0, "positive"
-        if not ok:
-            raise ValueError(f"{name} must be {accepted}, got {value}")
+    check_ranges(cfg, AT_LEAST)
     if cfg.gamma > 1 or cfg.gae_lambda > 1:
         raise ValueError(f"gamma and gae_lambda must be at most 1, got {cfg.gamma} and {cfg.gae_lambda}")
     if cfg.minibatches > cfg.robots * cfg.episode_steps:
         raise ValueError(f"minibatches ({cfg.minibatches}) must not exceed robots x episode_steps")
-    if cfg.gnn.log_std_min >= cfg.gnn.log_std_max:
-        raise ValueError(f"log_std_min ({cfg.gnn.log_std_min}) must be below log_std_max ({cfg.gnn.log_std_max})")
     return cfg
 
 
@@ -295,7 +284,7 @@ def ppo_loss(policy: Memoryless, value: ModularValue, mb: dict, graph, cfg: PPOC
     log_ratio = gaussian_log_prob(mean, log_std, mb["actions"]) - mb["log_probs"]        # (M,)
     ratio = torch.exp(log_ratio)                                                          # eqn. 6
     adv = mb["advantages"]
-    if cfg.norm_adv:
+    if cfg.norm_adv and len(adv) > 1:                   # one sample has no std (NaN)
         adv = (adv - adv.mean()) / (adv.std() + 1e-8)
     l_clip = torch.min(ratio * adv, ratio.clamp(1 - cfg.clip_coef, 1 + cfg.clip_coef) * adv).mean()   # eqn. 7
     l_vf = 0.5 * (value(mb["obs"], graph) - mb["returns"]).pow(2).mean()
@@ -426,57 +415,18 @@ def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None
     return run
 
 
-# ----------------------------------------------------------------------------
-# Throughput (kept out of the loop above): python ppo_minimal.py --bench
-# ----------------------------------------------------------------------------
-def bench(design: str = "hexapod", threads: int = 1) -> dict:
-    """Seconds of one PPO iteration's collection and update at the default config, and the cost of
-    one minibatch step with the memory (sequences re-run in order, as CleanRL's LSTM PPO) and without."""
-    torch.set_num_threads(threads)
-    cfg = validate_config(PPOConfig(train=(design,), threads=threads))
-    run, graph = new_run(cfg), sim2d.design_graph(design)
-    policy = Memoryless(run.policy)
-    t0 = time.perf_counter()
-    batch = collect_episodes(policy, run.value, cfg, run.rng)
-    t_collect = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    advantages, returns = gae(batch.rewards, batch.values, batch.last_value, batch.terminal, cfg.gamma, cfg.gae_lambda)
-    ppo_update(policy, run.value, run.opt, batch, advantages, returns, cfg, run.rng)
-    t_update = time.perf_counter() - t0
-    # one minibatch (N T / minibatches samples) forward + backward, without and with the recurrence
-    per_mb = cfg.robots * cfg.episode_steps // cfg.minibatches
-    flat = {k: v.flatten(0, 1)[:per_mb] for k, v in batch.obs.items()}
-    t0 = time.perf_counter()
-    policy.distribution(flat, graph)[0].sum().backward()
-    t_flat = time.perf_counter() - t0
-    robots = max(1, cfg.robots // cfg.minibatches)          # CleanRL's LSTM PPO: minibatches of whole robots
-    t0 = time.perf_counter()
-    h, total = run.policy.initial_hidden(robots, graph), 0.0
-    for t in range(cfg.episode_steps):
-        mean, _, h = run.policy({k: v[:robots, t] for k, v in batch.obs.items()}, graph, h)
-        total = total + mean.sum()
-    total.backward()
-    t_seq = time.perf_counter() - t0
-    return {"collect_s": t_collect, "update_s": t_update, "steps": cfg.robots * cfg.episode_steps,
-            "minibatch_memoryless_s": t_flat, "minibatch_recurrent_s": t_seq}
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--bench", action="store_true", help="time one PPO iteration on the hexapod")
+    parser.add_argument("--bench", action="store_true", help="time one PPO iteration on the hexapod "
+                        "(forwards to: python bench.py --ppo)")
     parser.add_argument("--design", default="hexapod")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     args = parser.parse_args()
     if not args.bench:
         parser.print_help()
         return
-    r = bench(args.design, args.threads)
-    total = r["collect_s"] + r["update_s"]
-    print(f"{args.design}, {args.threads} thread(s), one iteration of {r['steps']} steps: collection "
-          f"{r['collect_s']:.2f} s ({r['steps'] / r['collect_s']:.0f} steps/s), update {r['update_s']:.2f} s; "
-          f"{1e5 / r['steps'] * total / 60:.1f} min per 100 k simulator steps")
-    print(f"one minibatch forward+backward: memoryless {1e3 * r['minibatch_memoryless_s']:.0f} ms, "
-          f"recurrent (sequences in order) {1e3 * r['minibatch_recurrent_s']:.0f} ms")
+    import bench
+    return bench.main(["--ppo", "--design", args.design, "--threads", str(args.threads)])
 
 
 if __name__ == "__main__":

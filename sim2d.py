@@ -8,7 +8,11 @@ trajectories with random actions" (spline actions) and Sec. IV "Experiments"
 The paper uses IsaacGym in 3-D; this is a pymunk side view (y up, +x forward).
 
     python sim2d.py --design hexapod --action random --gif hexapod.gif
-    python sim2d.py --bench
+    python bench.py --world             # the world's speed against bare pymunk (or: sim2d.py --bench)
+    python check_physics.py             # contacts and joints (or: sim2d.py --check-physics)
+
+(`python sim2d.py --bench` and `python sim2d.py --check-physics [...]` still
+work: they forward to bench.py and check_physics.py.)
 
 Conventions used by every other file
 ------------------------------------
@@ -53,18 +57,18 @@ PHYSICS_DT = 1.0 / 60.0    # s, the paper's simulator step
 STEPS_PER_ACTION = 5       # physics steps one action is held (paper: 5 x 1/60 s)
 CONTROL_DT = PHYSICS_DT * STEPS_PER_ACTION   # 1/12 s per control step
 # Contacts and joints (issue #11).  Each setting below was chosen with
-# `python sim2d.py --check-physics`: the deepest reach of any shape below the
+# `python check_physics.py`: the deepest reach of any shape below the
 # ground / the widest pivot-joint gap / the largest joint-limit overshoot, after
 # every pymunk step, over 24 designs x {bang-bang, spline} actions x 8 robots x
 # 200 control steps; targets 2 cm / 1 cm / 0.05 rad.  The figures quoted are
 # what that check gave with this setting changed and all the others as chosen
-# (README, "Contacts and joints"); as chosen: 1.76 cm / 0.91 cm / 0.045 rad.
+# (docs/world.md, "Contacts and joints"); as chosen: 1.76 cm / 0.91 cm / 0.045 rad.
 PHYSICS_SUBSTEPS = 4       # pymunk steps of 1/240 s per 1/60 s physics step (ours, not the
                            # paper's).  pymunk acts on a contact or a joint limit only once it is
                            # already violated, so a foot hitting the ground at ~4 m/s sinks in by
                            # speed x step: 1 sub-step 8.3 cm / 4.5 cm / 0.186 rad, 2: 3.3 / 1.9 /
                            # 0.104, 3: 2.4 / 1.2 / 0.068.  Costs: the hexapod world runs at about
-                           # 0.6 x the speed of the old 1/60 s, 10-iteration one (README)
+                           # 0.6 x the speed of the old 1/60 s, 10-iteration one (docs/world.md)
 SUBSTEP_DT = PHYSICS_DT / PHYSICS_SUBSTEPS   # s, one pymunk step
 SOLVER_ITERATIONS = 5      # per pymunk step (pymunk's default is 10): 3 left pivots 1.25 cm
                            # apart; 10 narrow the widest gap to 0.60 cm but slow the world by 22 %
@@ -90,7 +94,7 @@ WHEEL_RADIUS = (THIGH + SHIN) * math.cos(HIP_NOMINAL) + FOOT_RADIUS   # ~34.1 cm
 WHEEL_MASS = 1.0             # kg, same as one leg (two links)
 LEG_MAX_SPEED = 6.0          # rad/s at action 1 (hip and knee)
 WHEEL_MAX_SPEED = 3.5        # rad/s at action 1: 3.5 * 34.1 cm = 1.19 m/s, close to
-                             # the hexapod's tripod gait (see README, "Physics")
+                             # the hexapod's tripod gait (docs/world.md)
 LEG_MAX_TORQUE = 1.5e5       # kg cm^2/s^2, motor max_force (unbounded if unset).  4e5 (before
                              # issue #11) pushed pivots 1.03 cm apart and feet 2.06 cm deep; at 1e5
                              # the leg_none_wheel demonstrator nose-dives (0.42 m/s, 1.2e5: 0.99)
@@ -592,22 +596,19 @@ def set_motor_rates(motor_ptrs: list, rates: list[float]) -> None:
 _space_step = pymunk._chipmunk_cffi.lib.cpSpaceStep   # private: use step_space
 
 
-def step_space(space: pymunk.Space, steps: int, after_each=None) -> None:
+def step_space(space: pymunk.Space, steps: int) -> None:
     """Advance `space` by `steps` pymunk steps of SUBSTEP_DT: `space.step(SUBSTEP_DT)`, `steps` times.
 
     Calls pymunk's C function cpSpaceStep directly.  `space.step` wraps it in
     Python bookkeeping for objects added or removed during a step and for
     post-step callbacks, none of which the world uses; skipping it, 20 calls
-    per control step, made the hexapod world 12 % faster (--bench, two runs:
+    per control step, made the hexapod world 12 % faster (bench.py --world, two runs:
     6.9k / 7.1k -> 7.8k / 8.0k robot steps/s).  tests/test_sim2d.py checks
-    that it moves robots exactly as `space.step` does.  after_each(space), if given, runs
-    after every pymunk step (check_physics measures there).
+    that it moves robots exactly as `space.step` does.
     """
     ptr = space._space
     for _ in range(steps):
         _space_step(ptr, SUBSTEP_DT)
-        if after_each is not None:
-            after_each(space)
 
 
 _BODY_FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
@@ -639,7 +640,6 @@ class World:
         self.action_scale = joint_speed_scale(self.graph)
         self._buffer = pymunk.batch.Buffer()
         self.spaces: list[pymunk.Space] = []
-        self.after_physics_step = None     # f(space) run after every pymunk step, for measurements
 
     # -- state ---------------------------------------------------------------
     def read_state(self) -> np.ndarray:
@@ -692,7 +692,7 @@ class World:
         rates = (actions * self.action_scale).tolist()
         for space, motors, rate in zip(self.spaces, self._motor_ptrs, rates):
             set_motor_rates(motors, rate)
-            step_space(space, STEPS_PER_ACTION * PHYSICS_SUBSTEPS, self.after_physics_step)
+            step_space(space, STEPS_PER_ACTION * PHYSICS_SUBSTEPS)
         s, s_next = self.state, self.read_state()
         r = reward(s, actions, s_next, self.graph)       # numpy here: a third of torch's cost on tiny arrays
         self.state, self.t = s_next, self.t + 1
@@ -857,198 +857,6 @@ def save_png(graph: DesignGraph, states: np.ndarray, path: str, poses: int = 6, 
     plt.close(fig)
 
 
-# ----------------------------------------------------------------------------
-# Benchmark: the world's overhead over bare pymunk stepping of the same robots
-# ----------------------------------------------------------------------------
-def bench(designs=tuple(NAMED_DESIGNS), n: int = 16, steps: int = 100, repeats: int = 5) -> dict:
-    """Robot control steps per second: World.step vs bare pymunk driving the same robots.
-
-    Bare pymunk = what a user of pymunk alone must do for the same motion: set
-    every motor's rate (`motor.rate = r`) and call `space.step(SUBSTEP_DT)` 5 x
-    PHYSICS_SUBSTEPS times, with the same Spaces (same solver settings) and no
-    state read, observation or reward.  Both replay the same actions from the
-    same start, alternating, in one process; best of `repeats` each.
-    """
-    results = {}
-    for design in designs:
-        world = World(design, n=n)
-        actions = random_spline_actions(np.random.default_rng(0), n, design_graph(design).action_dim, steps)
-        rates = np.clip(actions, -1, 1) * joint_speed_scale(world.graph)
-        best_world = best_bare = float("inf")
-        for _ in range(repeats):
-            world.reset(seed=0)
-            t0 = time.perf_counter()
-            for t in range(steps):
-                world.step(actions[:, t])
-            best_world = min(best_world, time.perf_counter() - t0)
-            world.reset(seed=0)
-            t0 = time.perf_counter()
-            for t in range(steps):
-                for space, motors, rate in zip(world.spaces, world.motors, rates[:, t].tolist()):
-                    for motor, r in zip(motors, rate):
-                        motor.rate = r
-                    for _ in range(STEPS_PER_ACTION * PHYSICS_SUBSTEPS):
-                        space.step(SUBSTEP_DT)
-            best_bare = min(best_bare, time.perf_counter() - t0)
-        results[design] = {"world": n * steps / best_world, "bare": n * steps / best_bare}
-    return results
-
-
-# ----------------------------------------------------------------------------
-# Contacts and joints under any legal actions (issue #11), measured after
-# every physics step: a foot can tunnel and come back between control steps.
-# ----------------------------------------------------------------------------
-CHECK_SEED = 11        # seed of check_physics: its random codes, starts and actions
-CHECK_KINDS = ("bang-bang", "spline")
-
-
-def check_codes(designs=tuple(NAMED_DESIGNS), random_codes: int = 20, seed: int = CHECK_SEED) -> list[str]:
-    """The codes check_physics runs: the given designs, then `random_codes` others drawn
-    without replacement from all_designs() (minus the given ones) with rng `seed`."""
-    codes = list(dict.fromkeys(parse_design(d) for d in designs))
-    others = [c for c in all_designs() if c not in codes]
-    return codes + [str(c) for c in np.random.default_rng(seed).choice(others, random_codes, replace=False)]
-
-
-def bang_bang_actions(rng: np.random.Generator, n: int, action_dim: int, steps: int, hold: int = 3) -> np.ndarray:
-    """(n, steps, action_dim) actions of +-1 on every joint, signs redrawn every `hold` steps."""
-    signs = rng.choice([-1.0, 1.0], (n, -(-steps // hold), action_dim))
-    return np.repeat(signs, hold, axis=1)[:, :steps]
-
-
-def robot_geometry(space: pymunk.Space) -> dict:
-    """What check_physics measures in a robot's Space, by body index in pymunk.batch order.
-
-    "points": (P, 4) [body, x, y, radius] in the body's frame: circle centres,
-    segment ends and polygon corners, whose lowest reach is y - radius;
-    "pivots": (J, 6) [body a, body b, anchor a x, y, anchor b x, y];
-    "limits": (K, 4) [body a, body b, min, max] of b.angle - a.angle;
-    "surface": the top of the ground (cm).
-    """
-    index = {b: i for i, b in enumerate(space.bodies)}
-    points, surface = [], -math.inf
-    for shape in space.shapes:
-        if shape.body not in index:                                   # the ground
-            surface = max(surface, shape.cache_bb().top)
-        elif isinstance(shape, pymunk.Circle):
-            points.append([index[shape.body], *shape.offset, shape.radius])
-        elif isinstance(shape, pymunk.Segment):
-            points += [[index[shape.body], *p, shape.radius] for p in (shape.a, shape.b)]
-        else:
-            points += [[index[shape.body], *p, shape.radius] for p in shape.get_vertices()]
-    pivots = [[index[c.a], index[c.b], *c.anchor_a, *c.anchor_b]
-              for c in space.constraints if isinstance(c, pymunk.PivotJoint)]
-    limits = [[index[c.a], index[c.b], c.min, c.max]
-              for c in space.constraints if isinstance(c, pymunk.RotaryLimitJoint)]
-    return {"points": np.array(points), "pivots": np.array(pivots).reshape(-1, 6),
-            "limits": np.array(limits).reshape(-1, 4), "surface": surface}
-
-
-def contact_and_joint_errors(raw: np.ndarray, geometry: dict) -> dict:
-    """Worst errors over poses raw (K, bodies, 3) [x, y, angle] (cm, rad) of one robot kind.
-
-    penetration_cm: deepest reach of any shape below the ground's surface;
-    joint_gap_cm: largest distance between a pivot's two anchors in the world;
-    limit_violation_rad: largest joint angle beyond its RotaryLimitJoint range.
-    """
-    def world(body, local):                                           # (n,), (n, 2) -> (K, n, 2)
-        p, a = raw[:, body, :2], raw[:, body, 2]
-        c, s = np.cos(a), np.sin(a)
-        return p + np.stack([local[:, 0] * c - local[:, 1] * s, local[:, 0] * s + local[:, 1] * c], -1)
-
-    pts, piv, lim = geometry["points"], geometry["pivots"], geometry["limits"]
-    lowest = world(pts[:, 0].astype(int), pts[:, 1:3])[..., 1] - pts[:, 3]          # (K, P) cm
-    gap = np.linalg.norm(world(piv[:, 0].astype(int), piv[:, 2:4])
-                         - world(piv[:, 1].astype(int), piv[:, 4:6]), axis=-1)      # (K, J) cm
-    q = raw[:, lim[:, 1].astype(int), 2] - raw[:, lim[:, 0].astype(int), 2]         # (K, L) rad
-    over = np.maximum(q - lim[:, 3], lim[:, 2] - q)
-    return {"penetration_cm": max(0.0, float((geometry["surface"] - lowest).max())),
-            "joint_gap_cm": float(gap.max(initial=0.0)),
-            "limit_violation_rad": max(0.0, float(over.max(initial=0.0)))}
-
-
-def check_physics(designs=tuple(NAMED_DESIGNS), random_codes: int = 20, n: int = 8, steps: int = 200,
-                  kinds=CHECK_KINDS, seed: int = CHECK_SEED) -> dict:
-    """Drive robots with aggressive legal actions and measure how far contacts and joints give.
-
-    For each code of check_codes(designs, random_codes, seed) and each action
-    kind ("bang-bang": every joint at +-1, signs redrawn every 3 control steps;
-    "spline": random_spline_actions), n robots from perturbed starts run
-    `steps` control steps through World.step, and every physics step it takes
-    is measured (contact_and_joint_errors).  Returns {"rows": one dict per
-    (code, kind) with the three errors and the flips, "max_penetration_cm",
-    "max_joint_gap_cm", "max_limit_violation_rad"}.
-    """
-    rows, fields = [], pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
-    for code in check_codes(designs, random_codes, seed):
-        graph = design_graph(code)
-        for kind in kinds:
-            rng = np.random.default_rng(seed)
-            actions = (bang_bang_actions(rng, n, graph.action_dim, steps) if kind == "bang-bang"
-                       else random_spline_actions(rng, n, graph.action_dim, steps))
-            world = World(graph, n=n, max_steps=steps, seed=seed)
-            world.reset(seed=seed)
-            poses, buf = [], pymunk.batch.Buffer()                    # bytes of (bodies + 1, 3) per pymunk step
-
-            def record(space):
-                buf.clear()
-                pymunk.batch.get_space_bodies(space, fields, buf)
-                poses.append(bytes(buf.float_buf()))
-            world.after_physics_step = record
-            for t in range(steps):
-                world.step(actions[:, t])
-            raw = np.frombuffer(b"".join(poses)).reshape(len(poses), -1, 3)[:, :-1]   # drop the static body
-            errors = contact_and_joint_errors(raw, robot_geometry(world.spaces[0]))
-            rows.append({"code": code, "actions": kind, **errors, "flips": int(world.terminated.sum()),
-                         "pymunk_steps": len(poses) // n})
-    return {"rows": rows, **{f"max_{k}": max(r[k] for r in rows)
-                             for k in ("penetration_cm", "joint_gap_cm", "limit_violation_rad")}}
-
-
-def check_physics_main(argv: list[str]) -> int:
-    """`python sim2d.py --check-physics [--design D ...]`: the table of check_physics and one summary line."""
-    parser = CliParser(prog="sim2d.py --check-physics",
-                       description="Measure ground penetration, joint gaps and limit overshoot under "
-                                   "bang-bang and random spline actions, after every physics step.")
-    parser.add_argument("--check-physics", action="store_true")
-    parser.add_argument("--design", nargs="+", action="extend",
-                        help="names or codes to check (default: the four named designs)")
-    parser.add_argument("--random-codes", type=int, default=20,
-                        help="how many other codes of the 728 to add, drawn with --seed (0: none)")
-    parser.add_argument("--robots", type=int, default=8, help="perturbed starts per design and action kind")
-    parser.add_argument("--steps", type=int, default=200, help="control steps per run")
-    parser.add_argument("--seed", type=int, default=CHECK_SEED, help="seed of the codes, starts and actions")
-    args = parser.parse_args(argv)
-    if args.random_codes < 0 or args.robots < 1 or args.steps < 1:
-        parser.error("--random-codes must be >= 0, --robots and --steps >= 1")
-    try:
-        designs = [parse_design(d) for d in (args.design or NAMED_DESIGNS)]
-    except ValueError as e:
-        parser.error(str(e))
-    torch.set_num_threads(1)
-    t0 = time.perf_counter()
-    result = check_physics(designs, args.random_codes, args.robots, args.steps, seed=args.seed)
-    print(f"{'design':15s} {'actions':9s} {'penetration_cm':>14s} {'joint_gap_cm':>12s} "
-          f"{'limit_rad':>9s} {'flips':>5s}")
-    for r in result["rows"]:
-        print(f"{design_name(r['code']):15s} {r['actions']:9s} {r['penetration_cm']:14.2f} "
-              f"{r['joint_gap_cm']:12.2f} {r['limit_violation_rad']:9.3f} {r['flips']:5d}")
-    random_rows = [r for r in result["rows"] if r["code"] not in designs]
-    for kind in CHECK_KINDS:
-        rows = [r for r in random_rows if r["actions"] == kind]
-        if rows:
-            label = f"{len(rows)} random code{'s' if len(rows) > 1 else ''}"
-            print(f"{label:15s} {kind:9s} {max(r['penetration_cm'] for r in rows):14.2f} "
-                  f"{max(r['joint_gap_cm'] for r in rows):12.2f} "
-                  f"{max(r['limit_violation_rad'] for r in rows):9.3f} {sum(r['flips'] for r in rows):5d}  (max, flips summed)")
-    print(f"{args.robots} robots x {args.steps} control steps x {result['rows'][0]['pymunk_steps'] // args.steps} "
-          f"pymunk steps, each measured, per design and action kind; seed {args.seed}; "
-          f"{time.perf_counter() - t0:.1f} s")
-    print(f"max_penetration_cm={result['max_penetration_cm']:.2f} max_joint_gap_cm={result['max_joint_gap_cm']:.2f} "
-          f"max_limit_violation_rad={result['max_limit_violation_rad']:.3f}")
-    return 0
-
-
 class CliParser(argparse.ArgumentParser):
     """argparse, but bad input is one line on stderr and exit status 2 (no usage dump)."""
 
@@ -1066,22 +874,19 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="write an animation of the run to this path")
     parser.add_argument("--png", help="write six snapshots of the run to this path")
-    parser.add_argument("--bench", action="store_true", help="time the world against bare pymunk")
+    parser.add_argument("--bench", action="store_true", help="time the world against bare pymunk "
+                        "(forwards to: python bench.py --world)")
     parser.add_argument("--check-physics", action="store_true", help="measure ground penetration, joint "
-                        "gaps and limit overshoot under aggressive actions (--check-physics --help)")
+                        "gaps and limit overshoot under aggressive actions (forwards to: python "
+                        "check_physics.py; --check-physics --help)")
     argv = sys.argv[1:] if argv is None else list(argv)
     if "--check-physics" in argv:
-        return check_physics_main(argv)
+        import check_physics
+        return check_physics.main([a for a in argv if a != "--check-physics"])
     args = parser.parse_args(argv)
     if args.bench:
-        torch.set_num_threads(1)
-        results = bench()
-        for design, r in results.items():
-            print(f"{design:15s} world {r['world']:8.0f} steps/s   bare pymunk {r['bare']:8.0f} steps/s"
-                  f"   ratio {r['world'] / r['bare']:.2f}")
-        hexa = results["hexapod"]
-        print(f"hexapod_steps_per_s={hexa['world']:.1f} hexapod_ratio={hexa['world'] / hexa['bare']:.3f}")
-        return 0
+        import bench
+        return bench.main(["--world"])
     try:
         graph = design_graph(args.design)
     except ValueError as e:

@@ -3,11 +3,11 @@
 Paper: Whitman & Choset, "Learning Modular Robot Locomotion from
 Demonstrations", Algorithm 1 (run by modular_rlil_minimal.py) and Sec. IV
 (distance in 200 control steps); the model-free baseline PPO (ppo_minimal.py).
-CPU, about 5 minutes:
+CPU, minutes (README, Quick start); Ctrl-C keeps what finished and prints the command that continues it:
 
     python train.py --train leg_none_wheel --demos hexapod car     # RL+IL
     python train.py --train leg_none_wheel                         # plain RL baseline
-    python train.py --train car --preset tiny                      # class demo, about 12 s
+    python train.py --train car --preset tiny                      # class demo (README, Quick start)
     python train.py --train hexapod --method ppo                   # PPO, 2 M simulator steps
     python train.py --eval runs/leg_none_wheel-hexapod_car-seed0 --design hexapod --gif h.gif
     python train.py --sample-efficiency                            # RL, RL+IL and PPO per simulator step
@@ -15,6 +15,7 @@ CPU, about 5 minutes:
 A run directory holds metrics.json, metrics.csv, curve.png, policy.pt (config
 inside), checkpoint.pt (everything a resume needs) and rollout.gif.  An existing
 run is never overwritten: --resume continues it, --force starts afresh.
+The sweeps (--figure3, --sample-efficiency) and the results tables are in sweeps.py.
 """
 from __future__ import annotations
 
@@ -76,10 +77,11 @@ def atomic_write(path: Path, write) -> None:
 
 
 def versions() -> dict:
-    """The library versions a run's numbers depend on (with Config.threads)."""
+    """What a run's digits depend on besides its config (Config.threads among them): the library
+    versions and the CPU's vector instructions torch uses (AVX2, AVX512, ...)."""
     import pymunk
     return {"torch": torch.__version__, "numpy": np.__version__, "pymunk": pymunk.version,
-            "python": sys.version.split()[0]}
+            "python": sys.version.split()[0], "cpu_capability": torch.backends.cpu.get_cpu_capability()}
 
 
 def config_to_dict(cfg) -> dict:
@@ -89,21 +91,27 @@ def config_to_dict(cfg) -> dict:
 
 
 def config_from_dict(d: dict):
+    """The config `config_to_dict` wrote; a UsageError naming settings this version lacks."""
     d = {k: v for k, v in d.items() if k not in ("versions", "method")}
+    cls = ppo_lib.PPOConfig if "env_steps" in d else rlil.Config       # PPO's are written with "method": "ppo"
+    unknown = sorted(set(d) - {f.name for f in dataclasses.fields(cls)})
+    unknown += sorted(f"gnn.{k}" for k in set(d["gnn"]) - {f.name for f in dataclasses.fields(GNNConfig)})
+    if unknown:
+        raise UsageError(f"this run was written by another version of the code: settings {', '.join(unknown)} "
+                         "no longer exist (docs/ablations.md, Removed mechanisms); start a new run")
     d["gnn"] = GNNConfig(**d["gnn"])
     d["train"] = tuple(d["train"])
-    if "env_steps" in d:                                  # written with "method": "ppo"
-        return ppo_lib.PPOConfig(**d)
-    d["demos"] = tuple(d["demos"])
-    return rlil.Config(**d)
+    if cls is rlil.Config:
+        d["demos"] = tuple(d["demos"])
+    return cls(**d)
 
 
 def method_of(cfg) -> str:
     return "PPO" if is_ppo(cfg) else "RL+IL" if cfg.demos else "RL"
 
 
-def eval_policy(cfg, policy: ModularPolicy):
-    """The policy as evaluated: PPO trained it without its memory (ppo_minimal.Memoryless)."""
+def policy_to_evaluate(cfg, policy: ModularPolicy):
+    """The policy as it acts in its run: PPO trains it without its memory (ppo_minimal.Memoryless)."""
     return ppo_lib.Memoryless(policy) if is_ppo(cfg) else policy
 
 
@@ -188,7 +196,7 @@ def restore_run(ckpt: dict, cfg):
         run.return_scale = ppo_lib.ReturnScale(**ckpt["return_scale"])
         run.rng = rlil.Run.rng_from_state(ckpt["rng"])
         return run
-    policy, model = ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
+    policy, model = ModularPolicy(cfg.gnn), rlil.make_model(cfg)
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
@@ -199,7 +207,8 @@ def restore_run(ckpt: dict, cfg):
 def save_rollouts(out: Path, run) -> None:
     """rollout.gif: the final policy on each training design (one file per extra design)."""
     for k, design in enumerate(run.cfg.train):
-        result = rlil.evaluate_policy(eval_policy(run.cfg, run.policy), design, run.cfg, rlil.eval_seed(run.cfg))
+        result = rlil.evaluate_policy(policy_to_evaluate(run.cfg, run.policy), design, run.cfg,
+                                      rlil.eval_seed(run.cfg))
         name = "rollout.gif" if k == 0 else f"rollout_{sim2d.design_name(design)}.gif"
         atomic_write(out / name, lambda p: sim2d.save_gif(design, result.states[0], p, every=2))
 
@@ -214,10 +223,18 @@ def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
     if existing and not (resume or force):
         raise UsageError(f"{out} already holds a run ({', '.join(existing)}): "
                          "use --resume to continue it or --force to start afresh")
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()                  # can files be written there?
+    except OSError as e:
+        if created and out.is_dir():
+            shutil.rmtree(out, ignore_errors=True)
+        raise UsageError(f"cannot write the run directory {out} ({e.strerror or type(e).__name__}): "
+                         "name a directory you can write with --out")
     if force:
         for f in existing:
             (out / f).unlink()
-    out.mkdir(parents=True, exist_ok=True)
 
 
 def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
@@ -287,7 +304,7 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
     policy = ModularPolicy(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
     graph = sim2d.design_graph(design)
-    result = rlil.evaluate_policy(eval_policy(cfg, policy), graph.code, cfg, rlil.eval_seed(cfg))
+    result = rlil.evaluate_policy(policy_to_evaluate(cfg, policy), graph.code, cfg, rlil.eval_seed(cfg))
     d = result.distance_m
     print(f"policy {run_dir} (iteration {ckpt['iteration']}) on {graph.name} ({graph.code}): "
           f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result.flipped.sum())}")
@@ -296,386 +313,6 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
         print(f"wrote {gif}")
     print(f"design={graph.code} distance_m={d.mean():.4f}")
     return float(d.mean())
-
-
-# ----------------------------------------------------------------------------
-# Figure 3 of the paper: four conditions, RL vs RL+IL, over seeds
-# ----------------------------------------------------------------------------
-PANELS = {   # panel: (trained design, demo designs), the paper's Fig. 3 (a)-(d)
-    "a": ("hexapod", ("hexapod",)),
-    "b": ("car", ("car",)),
-    "c": ("leg_leg_wheel", ("hexapod", "car")),
-    "d": ("leg_none_wheel", ("hexapod", "car")),
-}
-
-
-def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int, panels: str = "abcd") -> list[dict]:
-    """One entry per run of the sweep: its panel, method, seed, directory and train.py arguments.
-
-    Every run has `base`'s budget; design, demos and seed are the panel's, and a
-    run gets one torch thread when several run at once.
-    """
-    runs = []
-    for panel, (design, demos) in PANELS.items():
-        if panel not in panels:
-            continue
-        for method, demo_list in (("RL+IL", demos), ("RL", ())):
-            for seed in range(seeds):
-                cfg = dataclasses.replace(base, train=(sim2d.parse_design(design),), seed=seed,
-                                          demos=tuple(sim2d.parse_design(d) for d in demo_list),
-                                          threads=1 if jobs > 1 else base.threads)
-                runs.append({"panel": panel, "train": design, "demos": "+".join(demos), "method": method,
-                             "seed": seed, "dir": out / run_name(cfg), "args": config_args(cfg)})
-    return runs
-
-
-def launch_runs(runs: list[dict], last: int, jobs: int, log, what: str) -> None:
-    """Run every run of a sweep whose metrics.json has not reached iteration `last` (a run's own
-    "last" if it has one) as its own train.py process, `jobs` at a time, continuing interrupted
-    ones with --resume; each run's output goes to its train.log, its exit status to r["returncode"]."""
-    import subprocess
-    from concurrent.futures import ThreadPoolExecutor, as_completed
-
-    t0 = time.perf_counter()
-    todo = [r for r in runs if last_iteration(r["dir"]) < r.get("last", last)]
-    log(f"{what}: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
-
-    def launch(run):
-        cmd = [sys.executable, str(Path(__file__).resolve()), *run["args"], "--out", str(run["dir"])]
-        if (run["dir"] / "checkpoint.pt").exists():
-            cmd.append("--resume")
-        run["dir"].mkdir(parents=True, exist_ok=True)
-        with open(run["dir"] / "train.log", "a") as f:
-            return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode
-
-    with ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(launch, r): r for r in todo}
-        for done, future in enumerate(as_completed(futures), 1):
-            r = futures[future]
-            r["returncode"] = future.result()
-            status = "ok" if r["returncode"] == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
-            elapsed = time.perf_counter() - t0
-            log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
-                f"{elapsed / done * (len(todo) - done):.0f} s left")
-
-
-def last_iteration(run_dir: Path) -> int:
-    """The iteration of the last row of a run's metrics.json; -1 when it has none."""
-    try:
-        return json.loads((run_dir / "metrics.json").read_text())["iterations"][-1]["iteration"]
-    except (OSError, ValueError, KeyError, IndexError):
-        return -1
-
-
-def finished_iterations(run_dir: Path) -> int:
-    """Iterations after iteration 0 in a run's metrics.json; -1 when it has none."""
-    try:
-        return len(json.loads((run_dir / "metrics.json").read_text())["iterations"]) - 1
-    except (OSError, ValueError, KeyError):
-        return -1
-
-
-def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd") -> list[str]:
-    """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
-
-    Each run is a normal run directory under `out`, so a sweep resumes (finished
-    runs are reused, interrupted ones continue) and its runs can be spread over
-    machines by any scheduler and merged into one `out` before plotting.
-    Returns the runs that failed or did not finish all `base.iters` iterations,
-    one line each; they are named in the summary and on the plot too.
-    """
-    log = log or rlil.ProgressLog()
-    out.mkdir(parents=True, exist_ok=True)
-    runs = figure3_runs(out, base, seeds, jobs, panels)
-    launch_runs(runs, base.iters, jobs, log, "figure 3")
-    problems = []
-    for r in runs:
-        n = finished_iterations(r["dir"])
-        if n < base.iters or r.get("returncode", 0) != 0:
-            why = f"exit status {r['returncode']}, " if r.get("returncode", 0) != 0 else ""
-            problems.append(f"({r['panel']}) {r['method']} seed {r['seed']}: {why}{max(n, 0)} of {base.iters} "
-                            f"iterations ({r['dir']})")
-    rows = figure3_rows(runs)
-    write_figure3(out, rows, base.iters, problems, panels)
-    summary = summarize_figure3(rows, base.iters, seeds, problems, panels)
-    atomic_write(out / "figure3.md", lambda p: Path(p).write_text(summary))
-    print(summary)
-    log(f"wrote {out / 'figure3.png'}, {out / 'figure3.csv'} and {out / 'figure3.md'}"
-        + (f"; {len(problems)} runs missing or failed" if problems else ""))
-    return problems
-
-
-FIGURE3_COLUMNS = ["panel", "train", "demos", "method", "seed", "iteration", "distance_m",
-                   "model_progress_m", "sim_progress_m"]
-
-
-def figure3_rows(runs: list[dict]) -> list[dict]:
-    """The CSV rows (FIGURE3_COLUMNS) of every finished iteration; the model's and the simulator's
-    progress over the first T steps are empty at iteration 0 (no model yet)."""
-    rows = []
-    for r in runs:
-        try:
-            metrics = json.loads((r["dir"] / "metrics.json").read_text())["iterations"]
-        except (OSError, ValueError, KeyError):
-            continue
-        rows += [{"panel": r["panel"], "train": r["train"], "demos": r["demos"], "method": r["method"],
-                  "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"],
-                  "model_progress_m": m.get("model_progress_m"), "sim_progress_m": m.get("sim_progress_m")}
-                 for m in metrics]
-    return rows
-
-
-def converged_at(curve: dict, threshold: float):
-    """First iteration whose distance reaches `threshold`, or None."""
-    return next((i for i in sorted(curve) if curve[i] >= threshold), None)
-
-
-def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = (), panels: str = "abcd") -> str:
-    """Markdown table per panel and method: iterations to converge, final distance, spread,
-    the largest drop of a seed between consecutive iterations, and model exploitation.
-
-    Converged = the first iteration whose mean over seeds reaches 90 % of the
-    best mean at iteration `iters` of either method in that panel (per seed: of
-    that seed's curve).  Means are over the seeds that reached an iteration;
-    the "seeds" column says how many reached the last one.  Spread = max - min
-    over seeds, averaged over iterations 1..iters.  Largest drop = the largest
-    fall of one seed from one iteration to the next after iteration 1.
-    Exploitation = the largest, over iterations >= 1, of the mean over seeds of
-    |model_progress_m - sim_progress_m| (the first T steps).
-    """
-    lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) "
-             "| spread (m) | largest drop after it. 1 (m) | exploitation (m) |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for panel, (design, demos) in PANELS.items():
-        if panel not in panels:
-            continue
-        runs, gaps = {}, {}                       # method -> seed -> iteration -> distance / |model - sim|
-        for r in rows:
-            if r["panel"] == panel:
-                runs.setdefault(r["method"], {}).setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
-                if r.get("model_progress_m") is not None and r.get("sim_progress_m") is not None:
-                    gaps.setdefault(r["method"], {}).setdefault(r["iteration"], []).append(
-                        abs(r["model_progress_m"] - r["sim_progress_m"]))
-        mean = {m: {i: np.mean([c[i] for c in curves.values() if i in c])
-                    for i in range(iters + 1) if any(i in c for c in curves.values())}
-                for m, curves in runs.items()}
-        finals = [curve[iters] for curve in mean.values() if iters in curve]
-        threshold = 0.9 * max(finals) if finals else float("inf")
-        fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
-        for method in ("RL+IL", "RL"):
-            curves = runs.get(method, {})
-            final = [c[iters] for c in curves.values() if iters in c]
-            head = f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} | {len(final)} of {seeds} |"
-            if not final:
-                lines.append(head + " no run finished | | | | | | |")
-                continue
-            per_seed = [converged_at(c, threshold) for c in curves.values()]
-            spread = np.mean([np.ptp([c[i] for c in curves.values() if i in c]) for i in range(1, iters + 1)])
-            drops = [c[i] - c[i + 1] for c in curves.values() for i in range(1, iters) if i + 1 in c]
-            gap = max((np.mean(v) for v in gaps.get(method, {}).values()), default=float("nan"))
-            lines.append(f"{head} {fmt(converged_at(mean[method], threshold))} | {', '.join(map(fmt, per_seed))} | "
-                         f"{np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} | {spread:.2f} | "
-                         f"{max(drops, default=0.0):.2f} | {gap:.2f} |")
-    if problems:
-        lines += ["", "Missing or failed runs (left out of the means above):"] + [f"- {p}" for p in problems]
-    return "\n".join(lines) + "\n"
-
-
-def write_rows_csv(path: Path, columns: list[str], rows: list[dict]) -> None:
-    """A CSV with a header row of `columns` and one line per dict, written atomically."""
-    def write(p):
-        with open(p, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=columns)
-            w.writeheader()
-            w.writerows(rows)
-    atomic_write(path, write)
-
-
-def save_sweep_plot(fig, path: Path, problems: list[str]) -> None:
-    """Save a sweep's figure atomically (missing or failed runs named along its foot) and close it."""
-    import matplotlib.pyplot as plt
-    if problems:
-        fig.text(0.01, 0.01, "missing or failed: " + "; ".join(p.split(" (")[0] for p in problems),
-                 fontsize=8, color="tab:red", wrap=True)
-    fig.tight_layout(rect=(0, 0.04 * bool(problems), 1, 1))
-    atomic_write(path, lambda p: fig.savefig(p, format="png"))
-    plt.close(fig)
-
-
-def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = (), panels: str = "abcd") -> None:
-    """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    write_rows_csv(out / "figure3.csv", FIGURE3_COLUMNS, rows)
-    shown = [(p, v) for p, v in PANELS.items() if p in panels]
-    fig, axes = plt.subplots(1, len(shown), figsize=(4 * len(shown), 3.8 + 0.18 * len(problems)), dpi=100,
-                             sharey=True, squeeze=False)
-    axes = axes[0]
-    for ax, (panel, (design, demos)) in zip(axes, shown):
-        for method, colour in (("RL+IL", "tab:blue"), ("RL", "tab:red")):
-            table = {}
-            for row in rows:
-                if row["panel"] == panel and row["method"] == method:
-                    table.setdefault(row["iteration"], []).append(row["distance_m"])
-            if not table:
-                continue
-            it = sorted(table)
-            counts = sorted({len(table[i]) for i in it})
-            seeds = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
-            ax.plot(it, [np.mean(table[i]) for i in it], "o-", color=colour, label=f"{method} ({seeds} seeds)")
-            ax.fill_between(it, [min(table[i]) for i in it], [max(table[i]) for i in it], color=colour, alpha=0.2)
-        ax.set_title(f"({panel}) {design}, demos: {' + '.join(demos)}", fontsize=10)
-        ax.set_xlabel("iteration")
-        ax.set_xticks(range(iters + 1))
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="lower right")
-    axes[0].set_ylabel("distance in 200 steps (m)")
-    save_sweep_plot(fig, out / "figure3.png", problems)
-
-
-# ----------------------------------------------------------------------------
-# Sample efficiency (not in the paper): Algorithm 1 against PPO per simulator step and per second
-# ----------------------------------------------------------------------------
-SAMPLE_EFFICIENCY = {"hexapod": PANELS["a"][1], "leg_none_wheel": PANELS["d"][1]}   # design: Figure 3's demos
-THRESHOLDS_M = (5.0, 10.0)
-SAMPLE_COLUMNS = ["train", "method", "seed", "iteration", "sim_steps", "seconds", "distance_m"]
-
-
-def sample_efficiency_runs(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int,
-                           jobs: int) -> list[dict]:
-    """One entry per run: hexapod and leg_none_wheel x {RL+IL, RL, PPO} x seeds, with `base`'s and
-    `base_ppo`'s budgets; one torch thread per run when several run at once."""
-    runs = []
-    for design, demos in SAMPLE_EFFICIENCY.items():
-        code = (sim2d.parse_design(design),)
-        for method in ("RL+IL", "RL", "PPO"):
-            for seed in range(seeds):
-                if method == "PPO":
-                    cfg = dataclasses.replace(base_ppo, train=code, seed=seed,
-                                              threads=1 if jobs > 1 else base_ppo.threads)
-                else:
-                    cfg = dataclasses.replace(base, train=code, seed=seed, threads=1 if jobs > 1 else base.threads,
-                                              demos=tuple(sim2d.parse_design(d) for d in demos) if method == "RL+IL" else ())
-                last = ppo_lib.iterations(cfg) if method == "PPO" else cfg.iters
-                runs.append({"train": design, "method": method, "seed": seed, "dir": out / run_name(cfg),
-                             "args": config_args(cfg), "last": last})
-    return runs
-
-
-def sample_efficiency_rows(runs: list[dict]) -> list[dict]:
-    """The CSV rows (SAMPLE_COLUMNS) of every recorded evaluation; seconds are cumulative."""
-    rows = []
-    for r in runs:
-        try:
-            saved = json.loads((r["dir"] / "metrics.json").read_text())
-        except (OSError, ValueError):
-            continue
-        cfg, seconds = config_from_dict(saved["config"]), 0.0
-        for m in saved["iterations"]:
-            seconds += m["seconds"]
-            steps = m["sim_steps"] if "sim_steps" in m else rlil.sim_steps(cfg, m["iteration"])   # runs before sim_steps
-            rows.append({"train": r["train"], "method": r["method"], "seed": r["seed"], "iteration": m["iteration"],
-                         "sim_steps": steps, "seconds": seconds, "distance_m": m["distance_m"]})
-    return rows
-
-
-def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
-    """[(sim_steps, mean seconds, [distance per seed]) per iteration] of one design and method;
-    every seed evaluates at the same iterations and simulator steps."""
-    table = {}
-    for row in rows:
-        if row["train"] == design and row["method"] == method:
-            table.setdefault(row["iteration"], []).append(row)
-    return [(np.mean([r["sim_steps"] for r in table[i]]), np.mean([r["seconds"] for r in table[i]]),
-             [r["distance_m"] for r in table[i]]) for i in sorted(table)]
-
-
-def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = ()) -> str:
-    """Markdown: per design and method, the simulator steps and seconds at which the mean over seeds
-    first reaches 5 m and 10 m in 200 steps, and where each ends."""
-    head = " | ".join(f"{t:g} m: steps | {t:g} m: seconds" for t in THRESHOLDS_M)
-    lines = [f"| design | method | seeds | {head} | final steps | final seconds | final mean (m) | final min-max (m) |",
-             "|---|---|---|" + "---|" * (2 * len(THRESHOLDS_M) + 4)]
-    for design in SAMPLE_EFFICIENCY:
-        for method in ("RL+IL", "RL", "PPO"):
-            curve = mean_curve(rows, design, method)
-            if not curve:
-                lines.append(f"| {design} | {method} | 0 of {seeds} |" + " |" * (2 * len(THRESHOLDS_M) + 4))
-                continue
-            cells = []
-            for t in THRESHOLDS_M:
-                hit = next(((s, sec) for s, sec, d in curve if np.mean(d) >= t), None)
-                cells += [f"{hit[0]:,.0f}", f"{hit[1]:.0f}"] if hit else ["not reached", ""]
-            steps, seconds, final = curve[-1]
-            lines.append(f"| {design} | {method} | {len(final)} of {seeds} | {' | '.join(cells)} | {steps:,.0f} | "
-                         f"{seconds:.0f} | {np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} |")
-    if problems:
-        lines += ["", "Missing or failed runs (left out of the means above):"] + [f"- {p}" for p in problems]
-    return "\n".join(lines) + "\n"
-
-
-def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = ()) -> None:
-    """sample_efficiency.csv and .png: per design, distance against simulator steps and against
-    seconds (both log axes; the untrained PPO policy at 0 steps is left off), mean over seeds as a
-    line, min-max as a band, the summary's thresholds as dotted lines."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib import ticker
-
-    write_rows_csv(out / "sample_efficiency.csv", SAMPLE_COLUMNS, rows)
-    fig, axes = plt.subplots(len(SAMPLE_EFFICIENCY), 2, figsize=(13, 3.8 * len(SAMPLE_EFFICIENCY)), dpi=100,
-                             sharey="row", squeeze=False)
-    for row_axes, (design, demos) in zip(axes, SAMPLE_EFFICIENCY.items()):
-        for method, colour in COLOURS.items():
-            curve = [c for c in mean_curve(rows, design, method) if c[0] > 0]
-            if not curve:
-                continue
-            n = len(curve[-1][2])
-            label = (f"{method}" + (f" ({' + '.join(demos)} demos)" if method == "RL+IL" else "")
-                     + f", {n} seed{'s' * (n > 1)}")
-            for ax, k in zip(row_axes, (0, 1)):
-                x = [c[k] for c in curve]
-                ax.plot(x, [np.mean(c[2]) for c in curve], "o-", ms=3, color=colour, label=label)
-                ax.fill_between(x, [min(c[2]) for c in curve], [max(c[2]) for c in curve], color=colour, alpha=0.2)
-        for ax, xlabel, unit in zip(row_axes, ("simulator steps (evaluation excluded)",
-                                               "wall-clock seconds (one thread, evaluation included)"), ("", " s")):
-            ax.set_xscale("log")
-            ax.xaxis.set_major_formatter(ticker.FuncFormatter(                 # 1,000 and 100 s, not 10^3
-                lambda v, _, u=unit: f"{v:,.0f}{u}" if v >= 1 else f"{v:g}{u}"))
-            ax.xaxis.set_minor_formatter(ticker.NullFormatter())
-            for t in THRESHOLDS_M:                # the summary table's thresholds
-                ax.axhline(t, color="grey", lw=0.8, ls=":")
-            ax.set_xlabel(xlabel)
-            ax.set_title(design, fontsize=10)
-            ax.grid(alpha=0.3, which="both")
-        row_axes[0].set_ylabel("distance in 200 steps (m)")
-        row_axes[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1))    # beside the row
-    save_sweep_plot(fig, out / "sample_efficiency.png", problems)
-
-
-def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int, jobs: int,
-                      log=None) -> list[str]:
-    """Run (or reuse) every run as its own train.py process, then plot, tabulate and summarise
-    (sample_efficiency.png, .csv, .md in `out`).  Returns the runs that failed or did not finish."""
-    log = log or rlil.ProgressLog()
-    out.mkdir(parents=True, exist_ok=True)
-    runs = sample_efficiency_runs(out, base, base_ppo, seeds, jobs)
-    launch_runs(runs, 0, jobs, log, "sample efficiency")
-    problems = [f"{r['train']} {r['method']} seed {r['seed']}: "
-                + (f"exit status {r['returncode']}, " if r.get("returncode", 0) != 0 else "")
-                + f"{max(last_iteration(r['dir']), 0)} of {r['last']} iterations ({r['dir']})"
-                for r in runs if last_iteration(r["dir"]) < r["last"] or r.get("returncode", 0) != 0]
-    rows = sample_efficiency_rows(runs)
-    write_sample_efficiency(out, rows, problems)
-    summary = summarize_sample_efficiency(rows, seeds, problems)
-    atomic_write(out / "sample_efficiency.md", lambda p: Path(p).write_text(summary))
-    print(summary)
-    log(f"wrote {out / 'sample_efficiency.png'}, .csv and .md" + (f"; {len(problems)} runs missing or failed"
-                                                                   if problems else ""))
-    return problems
 
 
 # ----------------------------------------------------------------------------
@@ -743,7 +380,7 @@ def config_args(cfg) -> list[str]:
 def build_parser() -> sim2d.CliParser:
     p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) and the PPO baseline on the planar world.")
     p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
-                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget, a class demo of about 12 s)")
+                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget and the class demo)")
     p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>)")
     p.add_argument("--resume", action="store_true", help="continue an existing run after its last iteration")
     p.add_argument("--force", action="store_true", help="start afresh, replacing an existing run's outputs")
@@ -808,24 +445,42 @@ def config_from_args(args, method: str | None = None, strict: bool = True):
     return cfg
 
 
+def resume_hint(out: Path, argv: list[str]) -> str:
+    """The one line Ctrl-C prints: what `out` keeps and the command that continues the run."""
+    try:
+        done = torch.load(out / "checkpoint.pt", weights_only=False)["iteration"]
+    except Exception:                             # none yet, or cut short while being written
+        return f"interrupted before the first checkpoint: nothing was kept in {out}; run the same command again"
+    args = [a for a in argv if a not in ("--resume", "--force")]
+    args += [] if "--out" in args else ["--out", str(out)]
+    kept = f"iterations 0-{done}" if done else "iteration 0"
+    return (f"interrupted: {out} keeps {kept}; continue with: "
+            f"python train.py {' '.join(args)} --resume")
+
+
 def main(argv=None) -> int:
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
+    out = None                                    # the run directory a Ctrl-C reports on
     try:
+        if args.sample_efficiency or args.figure3:
+            sys.modules.setdefault("train", sys.modules[__name__])   # run as a script: sweeps gets this module
+            import sweeps                         # sweeps imports train: not at the top
         if args.sample_efficiency:
             if args.seeds < 1 or args.jobs < 1:
                 raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
-            problems = sample_efficiency(Path(args.out or "runs/sample_efficiency"),
-                                         config_from_args(args, "rlil", strict=False),
-                                         config_from_args(args, "ppo", strict=False), args.seeds, args.jobs)
+            problems = sweeps.sample_efficiency(Path(args.out or "runs/sample_efficiency"),
+                                                config_from_args(args, "rlil", strict=False),
+                                                config_from_args(args, "ppo", strict=False), args.seeds, args.jobs)
             return 1 if problems else 0
         if args.figure3:
             if args.seeds < 1 or args.jobs < 1:
                 raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
-            if not args.panels or set(args.panels) - set(PANELS):
+            if not args.panels or set(args.panels) - set(sweeps.PANELS):
                 raise UsageError(f"--panels takes letters from abcd, got {args.panels!r}")
-            problems = figure3(Path(args.out or "runs/figure3"), config_from_args(args), args.seeds, args.jobs,
-                               panels=args.panels)
+            problems = sweeps.figure3(Path(args.out or "runs/figure3"), config_from_args(args), args.seeds,
+                                      args.jobs, panels=args.panels)
             return 1 if problems else 0
         if args.eval:
             if not args.design:
@@ -848,6 +503,13 @@ def main(argv=None) -> int:
         return 0
     except UsageError as e:
         parser.error(str(e))
+    except KeyboardInterrupt:
+        if out is None:                           # a sweep: every run is a run directory of its own
+            print("interrupted: finished runs are kept, interrupted ones continue from their last "
+                  "checkpoint: run the same command again", file=sys.stderr)
+        else:
+            print(resume_hint(out, argv), file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

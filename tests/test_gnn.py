@@ -12,6 +12,7 @@ import torch
 
 import gnn
 import sim2d
+from bench import random_transitions
 
 # The named designs, the extremes (all legs, all wheels, one limb) and a fixed sample of the 728.
 CODES = sorted(set(sim2d.NAMED_DESIGNS.values()) | {"llllll", "wwwwww", "nnlnnn", "nnnnnw"}
@@ -47,8 +48,8 @@ def normalised_mse(model, s_pred, s, s_next, graph) -> torch.Tensor:
 @pytest.fixture(scope="module")
 def hexapod_data():
     """Sim transitions under random spline actions: 3200 to fit on, 1600 held out."""
-    return (gnn.random_transitions("hexapod", n_robots=32, steps=100, seed=0),
-            gnn.random_transitions("hexapod", n_robots=16, steps=100, seed=1))
+    return (random_transitions("hexapod", n_robots=32, steps=100, seed=0),
+            random_transitions("hexapod", n_robots=16, steps=100, seed=1))
 
 
 @pytest.mark.parametrize("code", CODES)
@@ -57,10 +58,10 @@ def test_output_shapes_on_any_design(code):
     policy, model = build()
     s = initial_states(graph, n)
     hidden = policy.initial_hidden(n, graph)
-    assert hidden.shape == (n, 1 + graph.n_legs + graph.n_wheels, policy.cfg.hidden) and not hidden.any()
+    assert hidden.shape == (1 + graph.n_legs + graph.n_wheels, n, policy.cfg.hidden) and not hidden.any()
     mean, log_std, hidden = policy(noisy_obs(s, graph), graph, hidden)
     assert mean.shape == log_std.shape == (n, graph.action_dim)
-    assert hidden.shape == (n, 1 + graph.n_legs + graph.n_wheels, policy.cfg.hidden)
+    assert hidden.shape == (1 + graph.n_legs + graph.n_wheels, n, policy.cfg.hidden)   # node-major
     a, _ = policy.act(noisy_obs(s, graph), graph, hidden)
     s_next = model(s, a, graph)
     assert a.shape == (n, graph.action_dim) and s_next.shape == (n, graph.state_dim)
@@ -129,49 +130,36 @@ def test_node_index_is_each_nodes_type_and_port_and_made_once():
     assert gnn.node_index(sim2d.design_graph("leg_none_wheel")) is ix
 
 
-def reference_step(nets, graph, x: list, h: list | None, rounds: int) -> list:
-    """The GNN of gnn.py's docstring written node by node with each type's own modules: x, h lists of
-    (n, F) per node in node order.  Returns every node's output (n, out) (the policy: its new memory)."""
-    kinds = [k for k, _ in graph.nodes]
-    ports = [None] + [p for _, p in graph.nodes[1:]]
-    z = [torch.tanh(nets[k].encode(xi) + (0 if p is None else nets.body.ports.weight[p]))
-         for k, p, xi in zip(kinds, ports, x)]
-    for _ in range(rounds):
-        inbox = sum(nets[k].up(zi) for k, zi in zip(kinds[1:], z[1:]))
-        body = z[0] + torch.tanh(nets.body.own(z[0]) + inbox)
-        z = [body] + [zi + torch.tanh(nets[k].own(zi) + nets[k].down(body)) for k, zi in zip(kinds[1:], z[1:])]
-    if h is not None:
-        return [nets[k].gru(zi, hi) for k, zi, hi in zip(kinds, z, h)]
-    return [nets[k].head(zi) for k, zi in zip(kinds, z)]
-
-
 @pytest.mark.parametrize("code", ["lnwwnl", "llllll", "wnwwnw", "nnnnnw", "llwwll"])
-def test_wired_layers_equal_each_nodes_own_type_modules(code):
-    """The per-node gathered, zero-padded weights compute what each module's own layers compute."""
+def test_batched_path_equals_the_node_by_node_computation(code):
+    """The wired path training runs (gathered, zero-padded weights, one batched product per
+    layer) computes what `node_by_node` computes with each node's own type's modules."""
     torch.manual_seed(0)
     graph, n = sim2d.design_graph(code), 4
     cfg = gnn.GNNConfig(contact_features=True)
-    policy, model = gnn.ModularPolicy(cfg), gnn.ModularModel(cfg)
+    policy, model, value = gnn.ModularPolicy(cfg), gnn.ModularModel(cfg), gnn.ModularValue(cfg)
     s, a = initial_states(graph, n), random_actions(graph, n) * 1.5
     model.fit_normalization([(graph, s, a, s + 0.1 * torch.randn_like(s))])
-    obs, hidden = noisy_obs(s, graph), torch.randn(n, 1 + graph.n_legs + graph.n_wheels, cfg.hidden).tanh()
-    # policy: node input [scaled observation, memory]
-    o = [obs["body"]] + list(obs["leg"].unbind(1)) + list(obs["wheel"].unbind(1))
-    x = [torch.cat([oi * gnn.OBS_SCALE[k], hi], -1) for (k, _), oi, hi in zip(graph.nodes, o, hidden.unbind(1))]
-    h = reference_step(policy.nets, graph, x, list(hidden.unbind(1)), cfg.rounds)
-    heads = [policy.nets[k].head(hi).chunk(2, -1) for (k, _), hi in zip(graph.nodes[1:], h[1:])]
-    lo, hi_ = cfg.log_std_min, cfg.log_std_max
-    mean, log_std, h_next = policy(obs, graph, hidden)
-    torch.testing.assert_close(mean, torch.cat([m for m, _ in heads], -1))
-    torch.testing.assert_close(log_std, lo + (hi_ - lo) * torch.sigmoid(torch.cat([r for _, r in heads], -1)))
-    torch.testing.assert_close(h_next, torch.stack(h, 1))
-    # model: normalised node inputs -> normalised change of state per node
-    raw = model.inputs(s, a, graph)
-    per_node = [raw["body"][:, 0]] + list(raw["leg"].unbind(1)) + list(raw["wheel"].unbind(1))
-    xs = [(xi - model.norm_in[k].mean) / model.norm_in[k].std for (k, _), xi in zip(graph.nodes, per_node)]
-    d = [yi * model.norm_out[k].std + model.norm_out[k].mean
-         for (k, _), yi in zip(graph.nodes, reference_step(model.nets, graph, xs, None, cfg.rounds))]
-    torch.testing.assert_close(model(s, a, graph), s + torch.cat(d, -1))
+    obs, hidden = noisy_obs(s, graph), torch.randn(1 + graph.n_legs + graph.n_wheels, n, cfg.hidden).tanh()
+    for batched, plain in zip(policy(obs, graph, hidden), policy.forward_node_by_node(obs, graph, hidden)):
+        torch.testing.assert_close(batched, plain)
+    torch.testing.assert_close(model(s, a, graph), model.forward_node_by_node(s, a, graph))
+    torch.testing.assert_close(value(obs, graph), value.forward_node_by_node(obs, graph))
+
+
+def test_node_by_node_is_the_docstrings_steps_on_a_body_with_one_leg():
+    """Steps 1-3 by hand for a robot with one leg, one round, no memory: z = tanh(W_enc x + p),
+    body += tanh(W_own z_b + W_up z_l), leg += tanh(W_own z_l + W_down body), out = head(z)."""
+    torch.manual_seed(0)
+    graph, nets = sim2d.design_graph("nnlnnn"), gnn.ModularModel(gnn.GNNConfig(hidden=8)).nets
+    x = [torch.randn(2, 5), torch.randn(2, 6)]
+    zb, zl = torch.tanh(nets.body.encode(x[0])), torch.tanh(nets.leg.encode(x[1]) + nets.body.ports.weight[2])
+    zb = zb + torch.tanh(nets.body.own(zb) + nets.leg.up(zl))
+    zl = zl + torch.tanh(nets.leg.own(zl) + nets.leg.down(zb))
+    out, h = gnn.node_by_node(nets, graph, x, None, rounds=1)
+    torch.testing.assert_close(out[0], nets.body.head(zb))
+    torch.testing.assert_close(out[1], nets.leg.head(zl))
+    assert h is None
 
 
 def test_batch_equals_one_robot_at_a_time():
@@ -179,13 +167,14 @@ def test_batch_equals_one_robot_at_a_time():
     graph, n = sim2d.design_graph("leg_leg_wheel"), 6
     s, a = initial_states(graph, n), random_actions(graph, n)
     obs = sim2d.observe(s, graph)
-    hidden = torch.randn(n, 7, policy.cfg.hidden).tanh()
+    hidden = torch.randn(7, n, policy.cfg.hidden).tanh()
     batched = policy(obs, graph, hidden) + (model(s, a, graph),)
     for i in range(n):
-        single = policy({k: v[i:i + 1] for k, v in obs.items()}, graph, hidden[i:i + 1]) \
+        single = policy({k: v[i:i + 1] for k, v in obs.items()}, graph, hidden[:, i:i + 1]) \
             + (model(s[i:i + 1], a[i:i + 1], graph),)
-        for b, o in zip(batched, single):
-            torch.testing.assert_close(b[i:i + 1], o, rtol=1e-5, atol=1e-6)
+        for k, (b, o) in enumerate(zip(batched, single)):
+            robot_i = b[:, i:i + 1] if k == 2 else b[i:i + 1]                 # the memory is node-major
+            torch.testing.assert_close(robot_i, o, rtol=1e-5, atol=1e-6)
 
 
 def demo_like_batch(design: str, n: int = 8, T: int = 6, seed: int = 0):
@@ -219,7 +208,7 @@ def test_mixed_design_il_loss_in_one_optimiser_step():
 def test_sequence_log_prob_matches_a_step_by_step_loop():
     policy = build()[0]
     graph, obs_seq, actions = demo_like_batch("lnwwnl", n=3, T=4)
-    h0 = torch.randn(3, 5, policy.cfg.hidden).tanh()
+    h0 = torch.randn(5, 3, policy.cfg.hidden).tanh()
     log_prob, entropy = policy.sequence_log_prob(obs_seq, actions, graph, h0)
     assert log_prob.shape == entropy.shape == (3, 4)
     hidden = h0
@@ -322,7 +311,7 @@ def test_log_std_stays_within_bounds():
         with torch.no_grad():
             policy.nets[k].head.weight.mul_(1000.0)       # drive the raw log-std far out in both directions
     obs = {k: 100.0 * v for k, v in sim2d.observe(initial_states(graph, 64), graph).items()}
-    _, log_std, _ = policy(obs, graph, torch.randn(64, 7, cfg.hidden).tanh())
+    _, log_std, _ = policy(obs, graph, torch.randn(7, 64, cfg.hidden).tanh())
     assert log_std.min() >= -1.5 and log_std.max() <= -0.5
     assert log_std.min() < -1.49 and log_std.max() > -0.51     # both bounds are reached, not just respected
 

@@ -18,6 +18,7 @@ import gnn
 import modular_rlil_minimal as rlil
 import ppo_minimal as ppo
 import sim2d
+import sweeps
 import train
 
 
@@ -75,18 +76,24 @@ def test_ppo_loss_is_eqn_9_with_the_clipped_surrogate_of_eqn_7():
                                         dtype=torch.float32), graph)
     mean, log_std = policy.distribution(obs, graph)
     actions = mean + 0.3
-    ratio = torch.tensor([0.5, 0.9, 1.1, 1.5])            # r_t, two of them outside [0.8, 1.2]
-    adv, returns = torch.tensor([1.0, -1.0, 2.0, -2.0]), torch.tensor([0.1, 0.2, 0.3, 0.4])
+    ratio = torch.tensor([0.5, 0.9, 1.5, 1.5])            # r_t, three of them outside [0.8, 1.2]
+    adv, returns = torch.tensor([-1.0, -1.0, 2.0, -2.0]), torch.tensor([0.1, 0.2, 0.3, 0.4])
     mb = {"obs": obs, "actions": actions, "advantages": adv, "returns": returns,
           "log_probs": gnn.gaussian_log_prob(mean, log_std, actions).detach() - ratio.log()}
     loss, stats = ppo.ppo_loss(policy, value, mb, graph, cfg)
-    clipped = ratio.clamp(0.8, 1.2)
-    l_clip = torch.min(ratio * adv, clipped * adv).mean()           # by hand: [0.5, -0.9, 2.2, -3.0]
-    assert l_clip.item() == pytest.approx((0.5 - 0.9 + 2.2 - 3.0) / 4)
+    # eqn. 7 by hand, min(r A, clip(r, 0.8, 1.2) A) per sample: min(-0.5, -0.8) = -0.8 (clipped),
+    # min(-0.9, -0.9), min(3.0, 2.4) = 2.4 (clipped), min(-3.0, -2.4) = -3.0 (not clipped)
+    l_clip = (-0.8 - 0.9 + 2.4 - 3.0) / 4
     l_vf = 0.5 * (value(obs, graph) - returns).pow(2).mean()
     entropy = gnn.gaussian_entropy(log_std).mean()
-    assert loss.item() == pytest.approx((-l_clip + 0.5 * l_vf - 0.1 * entropy).item(), abs=1e-5)
-    assert stats["clip_fraction"] == 0.5
+    assert loss.item() == pytest.approx(-l_clip + 0.5 * l_vf.item() - 0.1 * entropy.item(), abs=1e-5)
+    assert stats["policy_loss"] == pytest.approx(-l_clip, abs=1e-6)
+    assert stats["clip_fraction"] == 0.75
+    # the clipped samples (0 and 2) give the policy no gradient; without them (A = 0) nothing moves it
+    clipped_only = {**mb, "advantages": adv * torch.tensor([1.0, 0.0, 1.0, 0.0])}
+    policy.zero_grad()
+    ppo.ppo_loss(policy, value, clipped_only, graph, dataclasses.replace(cfg, ent_coef=0.0))[0].backward()
+    assert all(p.grad is None or not p.grad.any() for p in policy.parameters()), "a clipped sample moved the policy"
 
 
 def test_return_scale_is_the_std_of_the_discounted_return():
@@ -114,6 +121,20 @@ def test_steps_after_a_flip_are_simulated_but_not_trained_on(monkeypatch):
             assert batch.valid[i, :t + 1].all() and not batch.valid[i, t + 1:].any()
         else:
             assert batch.valid[i].all()
+    # the update never sees the invalid steps: give them NaN advantages and returns, and count samples
+    assert not batch.valid.all()
+    advantages, returns = ppo.gae(batch.rewards, batch.values, batch.last_value, batch.terminal, cfg.gamma,
+                                  cfg.gae_lambda)
+    advantages[~batch.valid], returns[~batch.valid] = float("nan"), float("nan")
+    seen, loss = [], ppo.ppo_loss
+
+    def counting_loss(policy, value, mb, graph, cfg):
+        seen.append(len(mb["returns"]))
+        return loss(policy, value, mb, graph, cfg)
+    monkeypatch.setattr(ppo, "ppo_loss", counting_loss)
+    ppo.ppo_update(ppo.Memoryless(run.policy), run.value, run.opt, batch, advantages, returns, cfg, run.rng)
+    assert sum(seen) == cfg.epochs * int(batch.valid.sum())
+    assert all(torch.isfinite(p).all() for p in [*run.policy.parameters(), *run.value.parameters()])
 
 
 def test_memoryless_policy_ignores_and_keeps_the_hidden_state():
@@ -121,7 +142,7 @@ def test_memoryless_policy_ignores_and_keeps_the_hidden_state():
     policy = ppo.Memoryless(gnn.ModularPolicy(gnn.GNNConfig(hidden=16)))
     obs = sim2d.observe(torch.as_tensor(sim2d.sample_initial_states(graph, 3, np.random.default_rng(1)),
                                         dtype=torch.float32), graph)
-    h = torch.randn(3, 5, 16)
+    h = torch.randn(5, 3, 16)                          # (nodes, robots, H)
     a, h_out = policy.act(obs, graph, h, deterministic=True)
     assert h_out is h and torch.equal(a, policy.act(obs, graph, torch.zeros_like(h), deterministic=True)[0])
     ppo.set_initial_std(policy.policy, 0.6)
@@ -211,7 +232,7 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
     """Finished fake runs are reused (nothing launched) and summarised: steps and seconds to 5 m
     and 10 m, the final mean and range."""
     base, base_ppo = rlil.preset("tiny", iters=1), smoke()
-    runs = train.sample_efficiency_runs(tmp_path, base, base_ppo, seeds=2, jobs=2)
+    runs = sweeps.sample_efficiency_runs(tmp_path, base, base_ppo, seeds=2, jobs=2)
     assert len(runs) == 2 * 3 * 2 and len({r["dir"] for r in runs}) == 12
     assert {(r["train"], r["method"]) for r in runs} == {(d, m) for d in ("hexapod", "leg_none_wheel")
                                                          for m in ("RL+IL", "RL", "PPO")}
@@ -225,7 +246,7 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
                 for i in range(r["last"] + 1)]
         (r["dir"] / "metrics.json").write_text(json.dumps({"config": train.config_to_dict(cfg), "iterations": rows}))
     monkeypatch.setattr(subprocess, "run", lambda *a, **k: pytest.fail("a finished run was launched"))
-    assert train.sample_efficiency(tmp_path, base, base_ppo, seeds=2, jobs=2, log=quiet) == []
+    assert sweeps.sample_efficiency(tmp_path, base, base_ppo, seeds=2, jobs=2, log=quiet) == []
     lines = (tmp_path / "sample_efficiency.csv").read_text().splitlines()
     assert lines[0] == "train,method,seed,iteration,sim_steps,seconds,distance_m"
     assert "hexapod,PPO,1,2,3000,30.0,15.0" in lines

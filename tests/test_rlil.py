@@ -7,11 +7,14 @@ IL loss must fall), the model fit (it must beat predict-no-change on held-out
 data), and the pieces of the policy phase (buffer refresh, validation revert,
 entropy penalty, policy data noise) are checked against what they must do.
 """
+import copy
 import dataclasses
 import json
 import math
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -20,6 +23,7 @@ import torch
 import gnn
 import modular_rlil_minimal as rlil
 import sim2d
+import sweeps
 import train
 
 
@@ -88,6 +92,45 @@ def test_behavioural_cloning_lowers_the_il_loss(hexapod_demos):
     assert bc < before - 5.0
 
 
+def test_algorithm1_starts_from_behavioural_cloning_when_demos_are_given(hexapod_demos):
+    """Line 1 inside Algorithm 1: the policy evaluated at iteration 0 must already imitate the
+    demos, far better than the same seed's untrained policy (measured on a fixed demo batch:
+    37.0 nats untrained, 6.8 after the tiny budget's 100 BC steps).  Fails when `algorithm1`
+    skips `pretrain_bc`."""
+    cfg = smoke(train=("car",), demos=("hexapod",), iters=1, bc_steps=100)
+    at_iteration_0 = []
+    rlil.algorithm1(cfg, hexapod_demos, log=quiet,
+                    on_iteration=lambda run: at_iteration_0.append(copy.deepcopy(run.policy)) if run.iteration == 0 else None)
+    rlil.seed_everything(cfg.seed)
+    untrained = rlil.ModularPolicy(cfg.gnn)                 # the policy algorithm1 starts from
+
+    def loss(policy):
+        with torch.no_grad():
+            return rlil.il_loss(policy, hexapod_demos, cfg, np.random.default_rng(123))[0].item()
+
+    assert loss(at_iteration_0[0]) < loss(untrained) - 5.0, (loss(at_iteration_0[0]), loss(untrained))
+
+
+def test_algorithm1_adds_the_policy_data_to_T_train_and_refits_the_model_on_it(monkeypatch):
+    """Lines 28-29 and 5: every iteration adds 2 x policy_episodes episodes of the policy to T_train
+    (clean, then noisy), and the next model fit sees them.  Fails when line 29 drops the new data."""
+    seen = []                                                # episodes per design at each model fit
+    fit = rlil.train_model
+
+    def counting_fit(model, data, *args, **kw):
+        seen.append({d: len(t.actions) for d, t in data.items()})
+        return fit(model, data, *args, **kw)
+    monkeypatch.setattr(rlil, "train_model", counting_fit)
+    cfg = smoke(train=("car", "leg_none_wheel"), iters=3, policy_episodes=2)
+    run = rlil.algorithm1(cfg, {}, log=quiet)
+    grown = [{d: cfg.random_episodes + 2 * cfg.policy_episodes * i for d in ("wnwwnw", "lnwwnl")} for i in range(3)]
+    assert seen == grown
+    assert {d: len(t.actions) for d, t in run.data.items()} == {d: cfg.random_episodes + 6 * 2 for d in grown[0]}
+    clean = run.data["wnwwnw"].actions[cfg.random_episodes:cfg.random_episodes + 2]   # iteration 1's clean episodes
+    noisy = run.data["wnwwnw"].actions[cfg.random_episodes + 2:cfg.random_episodes + 4]
+    assert not torch.equal(clean, noisy)
+
+
 def fraction_of_variance_left(model, s, a, s_next, graph) -> float:
     """Held-out one-step error of the state change, per entry over its variance, averaged.
     Predicting no change scores mean(d^2) / var(d) >= 1; a useful model well below 1."""
@@ -104,9 +147,8 @@ def test_model_fit_beats_predicting_no_change(car_data):
     graph = sim2d.design_graph("car")
     held_out = rlil.collect_random_rollouts("car", cfg, np.random.default_rng(1)).transitions()
     torch.manual_seed(0)
-    models = rlil.Ensemble(cfg)
-    loss = rlil.train_model(models, car_data, cfg, np.random.default_rng(0), first=True)
-    model = models.members[0]
+    model = rlil.make_model(cfg)
+    loss = rlil.train_model(model, car_data, cfg, np.random.default_rng(0), first=True)
     s, a, _ = car_data["wnwwnw"].transitions()
     torch.testing.assert_close(model.norm_in.wheel.mean, model.inputs(s, a, graph)["wheel"].reshape(-1, 2).mean(0))
     fitted = fraction_of_variance_left(model, *held_out, graph)
@@ -120,7 +162,7 @@ def test_validation_revert_goes_back_to_the_last_passed_check(monkeypatch, car_d
     k = 4 is below the start, so the policy reverts to its parameters at k = 2, not to the
     start, and the learning rate halves; a dip above the start (2.0 then 1.5) reverts nothing."""
     cfg = tiny(policy_steps=4, validate_every=2, update_rate=100, lr_drop=0.5, policy_lr=1e-3)
-    model = rlil.Ensemble(cfg)
+    model = rlil.make_model(cfg)
 
     def phase(values):
         rlil.seed_everything(0)
@@ -148,7 +190,7 @@ def test_non_finite_loss_never_reaches_the_parameters(monkeypatch, car_data):
     parameters stay exactly those of the phase's start."""
     cfg = tiny(policy_steps=3, validate_every=100)
     rlil.seed_everything(0)
-    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.make_model(cfg)
     start = {k: v.clone() for k, v in policy.state_dict().items()}
     real = sim2d.reward
     monkeypatch.setattr(rlil.sim2d, "reward", lambda *a: real(*a) * float("nan"))
@@ -176,11 +218,11 @@ def test_buffer_refresh_overwrites_the_second_half_with_states_T_over_2_steps_on
     policy = rlil.ModularPolicy(cfg.gnn)
     buffer = rlil.init_buffer(policy, data, cfg, np.random.default_rng(0))
     buffer.states[:4, 0] = -1.0                                                   # mark the first half
-    first = (buffer.states[:4].clone(), buffer.hidden[:4].clone())
+    first = (buffer.states[:4].clone(), buffer.hidden[:, :4].clone())
     rlil.refresh_buffer(buffer, policy, Drifts(), data, cfg, np.random.default_rng(0))
     torch.testing.assert_close(buffer.states[4:, 0], torch.full((4,), 0.5))
-    assert (buffer.hidden[4:].abs().sum((1, 2)) > 0).all()
-    assert torch.equal(buffer.states[:4], first[0]) and torch.equal(buffer.hidden[:4], first[1])
+    assert (buffer.hidden[:, 4:].abs().sum((0, 2)) > 0).all()
+    assert torch.equal(buffer.states[:4], first[0]) and torch.equal(buffer.hidden[:, :4], first[1])
 
 
 def test_policy_phase_refreshes_the_buffer_every_update_rate_steps(monkeypatch, car_data):
@@ -189,7 +231,7 @@ def test_policy_phase_refreshes_the_buffer_every_update_rate_steps(monkeypatch, 
     calls, real = [], rlil.refresh_buffer
     monkeypatch.setattr(rlil, "refresh_buffer", lambda *a: (calls.append(1), real(*a)))
     rlil.seed_everything(0)
-    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.Ensemble(cfg)
+    policy, model = rlil.ModularPolicy(cfg.gnn), rlil.make_model(cfg)
     rlil.optimize_policy(policy, model, car_data, {}, 0.0, cfg, np.random.default_rng(0))
     assert len(calls) == 3
 
@@ -204,7 +246,7 @@ def test_entropy_penalty_makes_the_policy_more_certain_on_demo_observations(car_
     demo observations than the same phase without it (same seeds; measured 7.18 against 7.74
     nats; with the penalty's sign flipped it ends above the run without it)."""
     cfg = tiny(policy_steps=10, validate_every=100)
-    model = rlil.Ensemble(cfg)
+    model = rlil.make_model(cfg)
     entropies = {}
     for weight in (0.0, 1.0):
         rlil.seed_everything(0)
@@ -273,9 +315,7 @@ def test_model_bias_compares_model_and_simulator_progress():
     states = np.zeros((3, cfg.eval_steps + 1, graph.state_dim))
     states[..., 0] = 0.05 * np.arange(cfg.eval_steps + 1)                    # 0.05 m per step
     run = sim2d.Episodes("wnwwnw", states, {}, np.zeros((3, cfg.eval_steps, graph.action_dim)), np.zeros(3, bool))
-    models = rlil.Ensemble(cfg)
-    models.members = torch.nn.ModuleList([Drifts()])
-    bias = rlil.model_bias(rlil.ModularPolicy(cfg.gnn), models, "car", run, cfg)
+    bias = rlil.model_bias(rlil.ModularPolicy(cfg.gnn), Drifts(), "car", run, cfg)
     assert bias == pytest.approx({"model_progress_m": 0.4, "sim_progress_m": 0.2, "model_path_error_m": 0.2})
 
 
@@ -291,6 +331,7 @@ def test_tiny_run_writes_every_output_and_decays_lambda(tmp_path, cache):
     config = saved["config"]
     assert config["train"] == ["lnwwnl"] and config["demos"] == ["llllll", "wnwwnw"] and config["threads"] == 1
     assert set(config["versions"]) >= {"torch", "numpy", "pymunk"} and config["versions"]["torch"] == torch.__version__
+    assert config["versions"]["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     assert [row["iteration"] for row in saved["iterations"]] == [0, 1, 2]
     assert [m["il_weight"] for m in metrics] == pytest.approx([0.4, 0.4, 0.2])   # lambda used, then halved
     for row in saved["iterations"]:
@@ -372,7 +413,10 @@ def test_cli_bad_input_exit_2_one_line_and_nothing_left_behind(tmp_path, capsys)
                  ["--train", "car", "--lr-drop", "2"], ["--train", "car", "--seed", "x"],
                  ["--figure3", "--seeds", "0"], ["--eval", str(tmp_path), "--design", "car"],
                  ["--train", "car", "--resume", "--out", str(tmp_path)],
-                 ["--train", "car", "--demos", "lnnnnl", "--out", str(tmp_path / "new")]):
+                 ["--train", "car", "--demos", "lnnnnl", "--out", str(tmp_path / "new")],
+                 ["--train", "car", "car"], ["--train", "car", "--demos", "hexapod", "hexapod"],
+                 ["--train", "car", "--horizon", "1000000000"], ["--train", "car", "--batch", "100000"],
+                 ["--train", "car", "--out", "/proc/forbidden/x"]):
         with pytest.raises(SystemExit) as exit_:
             train.main(args)
         err = capsys.readouterr().err
@@ -395,6 +439,27 @@ def test_a_run_failing_before_its_first_checkpoint_leaves_no_directory(tmp_path,
     assert not (tmp_path / "run").exists()
 
 
+def test_ctrl_c_says_what_was_kept_and_the_printed_command_continues_the_run(tmp_path):
+    """Ctrl-C after the first checkpoint: exit 130, one line on stderr (no traceback) naming
+    what the run keeps and a command; that command resumes the run to its end."""
+    out = tmp_path / "run"
+    args = ["--train", "car", "--preset", "tiny", "--eval-steps", "30", "--policy-steps", "60", "--out", str(out)]
+    proc = subprocess.Popen([sys.executable, "train.py", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 60
+    while not (out / "metrics.json").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"{out} keeps iteration 0" in err and err.strip().endswith("--resume"), err
+    command = err.split("continue with: ")[1].split()
+    assert command[:2] == ["python", "train.py"]
+    done = subprocess.run([sys.executable, *command[1:]], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert [r["iteration"] for r in json.loads((out / "metrics.json").read_text())["iterations"]] == [0, 1, 2]
+
+
 def test_cli_eval_zero_shot(tmp_path, cache):
     train.train(smoke(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
@@ -406,9 +471,10 @@ def test_cli_eval_zero_shot(tmp_path, cache):
 # Figure 3
 # ----------------------------------------------------------------------------
 def fake_sweep(tmp_path, skip=()):
-    """Finished runs of a 2-seed, 1-iteration sweep (distance grows with RL+IL), but `skip`."""
-    base = tiny(iters=1)
-    runs = train.figure3_runs(tmp_path, base, seeds=2, jobs=2)
+    """Finished runs of a 2-seed, 1-iteration sweep (distance grows with RL+IL), but `skip`; the base
+    config has 2 torch threads (not the default 1), so the sweep's thread rule shows in its runs."""
+    base = tiny(iters=1, threads=2)
+    runs = sweeps.figure3_runs(tmp_path, base, seeds=2, jobs=2)
     for k, r in enumerate(runs):
         r["dir"].mkdir(parents=True)
         iterations = range(1 if k in skip else 2)
@@ -422,10 +488,15 @@ def test_figure3_reuses_finished_runs_and_writes_plot_and_csv(tmp_path):
     """A sweep whose runs are all finished launches nothing and tabulates every run."""
     base, runs = fake_sweep(tmp_path)
     assert len(runs) == 4 * 2 * 2 and len({r["dir"] for r in runs}) == 16
-    threads = [r["args"][r["args"].index("--threads") + 1] if "--threads" in r["args"] else str(rlil.Config().threads)
-               for r in runs]                                   # a flag only where it differs from the default
-    assert threads == ["1"] * len(runs)
-    assert train.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet) == []
+    # what each run's train.py gets from its arguments (a field equal to the default is not passed):
+    # one torch thread when runs share the machine, the base config's 2 when they run one at a time
+    received = lambda r: train.config_from_args(train.build_parser().parse_args(r["args"]))   # noqa: E731
+    assert [received(r).threads for r in runs] == [1] * len(runs)
+    alone = sweeps.figure3_runs(tmp_path, base, seeds=2, jobs=1)
+    assert [received(r).threads for r in alone] == [2] * len(runs)
+    assert [r["dir"] for r in alone] == [r["dir"] for r in runs]        # same runs, whatever --jobs
+    assert [dataclasses.replace(received(r), threads=1) for r in alone] == [received(r) for r in runs]
+    assert sweeps.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet) == []
     lines = (tmp_path / "figure3.csv").read_text().splitlines()
     assert lines[0] == "panel,train,demos,method,seed,iteration,distance_m,model_progress_m,sim_progress_m"
     assert len(lines) == 1 + 16 * 2
@@ -442,7 +513,7 @@ def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
     (the command line exits 1); the other seed's final still counts, and only it."""
     base, runs = fake_sweep(tmp_path, skip={1})              # (a) RL+IL seed 1 has iteration 0 only
     monkeypatch.setattr(subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(a, 1))
-    problems = train.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet)
+    problems = sweeps.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet)
     assert len(problems) == 1 and "(a) RL+IL seed 1" in problems[0] and "exit status 1" in problems[0]
     table = (tmp_path / "figure3.md").read_text()
     assert "| (a) hexapod (hexapod demos) | RL+IL | 1 of 2 |" in table and "(a) RL+IL seed 1" in table
@@ -450,8 +521,8 @@ def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
 
 
 # ----------------------------------------------------------------------------
-# Robustness to model error: ensemble, held-out validation, multi-step loss,
-# pessimism, contact features (each a Config switch, off = the paper)
+# Not in the paper: ensemble with held-out validation, contact features, trust region
+# (each a switch, off = the paper)
 # ----------------------------------------------------------------------------
 class Shifts(torch.nn.Module):
     """A model that moves x by `dx` m per step."""
@@ -469,58 +540,20 @@ class Shifts(torch.nn.Module):
 
 def test_ensemble_trains_through_its_training_members_and_validates_on_the_held_out_ones():
     cfg = tiny(ensemble=3, held_out_models=1)
-    models = rlil.Ensemble(cfg)
-    models.members = torch.nn.ModuleList([Shifts(0.1), Shifts(0.2), Shifts(5.0)])
+    model = rlil.make_model(cfg)
+    assert isinstance(model, rlil.Ensemble) and isinstance(rlil.make_model(tiny()), gnn.ModularModel)
+    model.members = torch.nn.ModuleList([Shifts(0.1), Shifts(0.2), Shifts(5.0)])
     s = torch.zeros(4, sim2d.design_graph("car").state_dim)
     torch.manual_seed(0)
-    f = models.wire(sim2d.design_graph("car"))                 # what rollout steps through
+    f = model.wire(sim2d.design_graph("car"))                  # what rollout steps through
     steps = {round(f(s, None)[0, 0].item(), 3) for _ in range(50)}
     assert steps == {0.1, 0.2}                                  # a random training member per step, never #3
-    assert [m.dx for m in models.validation_models()] == [5.0]
-    models.n_train = 3
-    assert len(models.validation_models()) == 3                # none held out: validate on all
-
-
-def test_pessimism_subtracts_the_members_spread_of_predicted_progress():
-    cfg = tiny(ensemble=2, pessimism=2.0)
-    models = rlil.Ensemble(cfg)
-    models.members = torch.nn.ModuleList([Shifts(0.1), Shifts(0.3)])           # spread = std(0.1, 0.3)
-    graph = sim2d.design_graph("car")
-    policy = rlil.ModularPolicy(cfg.gnn)
-    s0 = torch.as_tensor(np.tile(sim2d.nominal_state(graph), (2, 1)), dtype=torch.float32)
-    h0 = policy.initial_hidden(2, graph)
-    torch.manual_seed(0)
-    plain, s_plain, _ = rlil.rollout(policy, models.members[0], s0, h0, graph, 1, deterministic=True)
-    torch.manual_seed(0)
-    R, s, _ = rlil.rollout(policy, models, s0, h0, graph, 1, deterministic=True, pessimism=2.0)
-    spread = torch.tensor([0.1, 0.3]).std()
-    moved = s[0, 0].item()
-    expected = plain + (moved - 0.1) - 2.0 * spread                         # progress of the member drawn
-    torch.testing.assert_close(R, expected)
-
-
-def test_multi_step_model_loss_is_the_open_loop_error_and_one_step_at_horizon_1(car_data):
-    cfg = tiny()
-    traj = car_data["wnwwnw"]
-    graph = sim2d.design_graph("car")
-    torch.manual_seed(0)
-    model = rlil.ModularModel(cfg.gnn)
-    flat = traj.transitions()
-    model.fit_normalization([(graph, *flat)])
-    one = rlil.model_loss(model, traj, flat, 64, 1, np.random.default_rng(0))
-    s, a, s_next = flat
-    i = torch.from_numpy(np.random.default_rng(0).integers(len(s), size=64))
-    torch.testing.assert_close(one, model.loss(s[i], a[i], s_next[i], graph))
-    H = 4
-    multi = rlil.model_loss(model, traj, flat, 64, H, np.random.default_rng(0))
-    rng = np.random.default_rng(0)
-    e, t0 = rng.integers(traj.actions.shape[0], size=16), rng.integers(traj.actions.shape[1] - H + 1, size=16)
-    by_hand, x = 0.0, traj.states[e, t0]
-    for h in range(H):
-        x = model(x, traj.actions[e, t0 + h], graph)
-        err = gnn.node_state(x - traj.states[e, t0 + h + 1], graph)
-        by_hand += sum((err[k] / model.norm_out[k].std).pow(2).sum() for k in err) / x.numel()
-    torch.testing.assert_close(multi, by_hand / H)
+    assert [m.dx for m in rlil.validation_models(model)] == [5.0]
+    assert len(rlil.members(model)) == 3                        # all are fitted to T_train
+    model.n_train = 3
+    assert len(rlil.validation_models(model)) == 3             # none held out: validate on all
+    single = gnn.ModularModel()
+    assert rlil.members(single) == rlil.validation_models(single) == [single]     # the paper: one model
 
 
 def test_contact_features_match_the_simulator_and_feed_the_model():
@@ -559,7 +592,7 @@ def test_trust_region_keeps_the_policy_phase_near_the_previous_policy(car_data):
     and end the phase at most half of what the same phase reaches without it (same seeds;
     measured 0.02 against 129 nats).  Fails if the penalty's sign is flipped (463 nats) or it is never added."""
     cfg = tiny(policy_steps=20, validate_every=100)
-    model = rlil.Ensemble(cfg)
+    model = rlil.make_model(cfg)
     kl = {}
     for weight in (0.0, 100.0):
         rlil.seed_everything(0)

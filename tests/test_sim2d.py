@@ -1,4 +1,6 @@
-"""Tests of the planar world (sim2d.py): designs, physics sanity, determinism, reward, batching."""
+"""Tests of the planar world (sim2d.py): designs, physics sanity, determinism, reward, batching;
+and of its contacts and joints under aggressive actions (check_physics.py)."""
+import re
 import subprocess
 import sys
 
@@ -6,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+import check_physics
 import sim2d
 
 NAMED = list(sim2d.NAMED_DESIGNS)
@@ -253,24 +256,22 @@ def test_step_space_moves_robots_exactly_as_space_step():
     rates = sim2d.random_spline_actions(np.random.default_rng(6), 1, g.action_dim, 30)[0] \
         * sim2d.joint_speed_scale(g)                       # (30, A) rad/s
     (public, motors_a), (fast, motors_b) = sim2d.build_robot(g, start), sim2d.build_robot(g, start)
-    calls = []
     for t in range(30):
         for a, b, r in zip(motors_a, motors_b, rates[t].tolist()):
             a.rate = b.rate = r
         for _ in range(sim2d.STEPS_PER_ACTION * sim2d.PHYSICS_SUBSTEPS):
             public.step(sim2d.SUBSTEP_DT)
-        sim2d.step_space(fast, sim2d.STEPS_PER_ACTION * sim2d.PHYSICS_SUBSTEPS, calls.append)
+        sim2d.step_space(fast, sim2d.STEPS_PER_ACTION * sim2d.PHYSICS_SUBSTEPS)
         state = [(b.position, b.angle, b.velocity, b.angular_velocity) for b in public.bodies]
         assert state == [(b.position, b.angle, b.velocity, b.angular_velocity) for b in fast.bodies]
-    assert len(calls) == 30 * sim2d.STEPS_PER_ACTION * sim2d.PHYSICS_SUBSTEPS and calls[0] is fast
 
 
 def test_contacts_and_joints_hold_under_bang_bang_actions():
-    # Issue #11's targets on a small sample (the full check: python sim2d.py --check-physics).
+    # Issue #11's targets on a small sample (the full check: python check_physics.py).
     # Measured 1.65 cm / 0.76 cm / 0.035 rad; the world before the repair (2 cm ground, 1/60 s
     # steps, 10 iterations, 4e5 leg torque, no armature) failed all three: 23.7 cm / 8.8 cm / 0.43 rad.
-    result = sim2d.check_physics(["hexapod"], random_codes=2, n=4, steps=60, kinds=("bang-bang",))
-    assert [r["code"] for r in result["rows"]] == ["llllll"] + sim2d.check_codes(["hexapod"], 2)[1:]
+    result = check_physics.check_physics(["hexapod"], random_codes=2, n=4, steps=60, kinds=("bang-bang",))
+    assert [r["code"] for r in result["rows"]] == ["llllll"] + check_physics.check_codes(["hexapod"], 2)[1:]
     assert result["rows"][0]["pymunk_steps"] == 60 * sim2d.STEPS_PER_ACTION * sim2d.PHYSICS_SUBSTEPS
     assert result["max_penetration_cm"] <= 2.0
     assert result["max_joint_gap_cm"] <= 1.0
@@ -280,23 +281,53 @@ def test_contacts_and_joints_hold_under_bang_bang_actions():
 def test_contact_and_joint_errors_of_a_known_pose():
     g = sim2d.design_graph("lnnnnn")                       # one leg: body, thigh, shin
     space, _ = sim2d.build_robot(g, sim2d.nominal_state(g))
-    geometry = sim2d.robot_geometry(space)
+    geometry = check_physics.robot_geometry(space)
     raw = np.array([[b.position.x, b.position.y, b.angle] for b in space.bodies])[None]   # (1, 3, 3)
-    errors = sim2d.contact_and_joint_errors(raw, geometry)
+    errors = check_physics.contact_and_joint_errors(raw, geometry)
     assert errors["penetration_cm"] < 1e-9 and errors["joint_gap_cm"] < 1e-9   # it stands on the ground
     assert errors["limit_violation_rad"] == 0.0
     raw[0, 0, 1] -= 50.0                                   # the body 50 cm lower: its hip anchor 50 cm from the thigh's
     raw[0, 2, 2] = raw[0, 1, 2] - 2.5                      # the shin turned so that the knee is 0.3 rad past -2.2
-    errors = sim2d.contact_and_joint_errors(raw, geometry)
+    errors = check_physics.contact_and_joint_errors(raw, geometry)
     assert np.isclose(errors["joint_gap_cm"], 50.0) and np.isclose(errors["limit_violation_rad"], 0.3)
     body_bottom = raw[0, 0, 1] - sim2d.BODY_HEIGHT / 2     # the level body's lowest corners
     assert np.isclose(errors["penetration_cm"], geometry["surface"] - body_bottom)
 
 
 def test_check_physics_command_line_ends_with_one_summary_line(capsys):
-    assert sim2d.main(["--check-physics", "--design", "car", "--random-codes", "0", "--robots", "1",
-                       "--steps", "3"]) == 0
-    last = capsys.readouterr().out.strip().splitlines()[-1]
-    keys = [kv.split("=")[0] for kv in last.split()]
-    assert keys == ["max_penetration_cm", "max_joint_gap_cm", "max_limit_violation_rad"]
-    assert all(float(kv.split("=")[1]) >= 0 for kv in last.split())
+    # Each summary figure, under its own key, is the maximum of its column in the table printed above it
+    # and check_physics's own result for the same arguments, to the printed precision.
+    assert check_physics.main(["--random-codes", "1", "--robots", "2", "--steps", "20"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [i for i, line in enumerate(lines) if "=" in line] == [len(lines) - 1]   # the only key=value line
+    summary = dict(kv.split("=") for kv in lines[-1].split())
+    assert list(summary) == ["max_penetration_cm", "max_joint_gap_cm", "max_limit_violation_rad"]
+    assert lines[0].split() == ["design", "actions", "penetration_cm", "joint_gap_cm", "limit_rad", "flips"]
+    assert lines[-2].startswith("2 robots x 20 control steps x 20 pymunk steps")
+    # table rows: [kind, penetration, gap, limit, flips], the names may hold spaces ("1 random code")
+    rows = [line.removesuffix("(max, flips summed)").split()[-5:] for line in lines[1:-2]]
+    result = check_physics.check_physics(sim2d.NAMED_DESIGNS, random_codes=1, n=2, steps=20)
+    assert len(rows) == len(result["rows"]) + len(check_physics.CHECK_KINDS)   # + the random code, per kind
+    for column, key, digits in ((1, "max_penetration_cm", 2), (2, "max_joint_gap_cm", 2),
+                                (3, "max_limit_violation_rad", 3)):
+        table_max = max((r[column] for r in rows), key=float)
+        assert summary[key] == table_max == f"{result[key]:.{digits}f}", key
+
+
+def test_old_check_physics_command_forwards_to_check_physics_py(capsys):
+    argv = ["--design", "car", "--random-codes", "0", "--robots", "1", "--steps", "3"]
+    assert sim2d.main(["--check-physics", *argv]) == 0
+    forwarded = capsys.readouterr().out
+    assert check_physics.main(argv) == 0
+    direct = capsys.readouterr().out
+
+    def without_seconds(out):
+        return [re.sub(r"; [0-9.]+ s$", "", line) for line in out.splitlines()]
+    assert without_seconds(forwarded) == without_seconds(direct) and len(direct.splitlines()) == 5
+
+
+def test_old_bench_flag_forwards_to_bench_py(monkeypatch):
+    import bench
+    calls = []
+    monkeypatch.setattr(bench, "main", lambda argv=None: calls.append(argv) or 0)
+    assert sim2d.main(["--bench"]) == 0 and calls == [["--world"]]
