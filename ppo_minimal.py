@@ -68,8 +68,7 @@ class PPOConfig:
     gae_lambda: float = 0.95         # GAE's lambda (eqn. 11); 0.9-1
     clip_coef: float = 0.2           # epsilon of the clipped surrogate (eqn. 7); 0.1-0.3
     epochs: int = 10                 # K, passes over each iteration's samples
-    minibatches: int = 16            # minibatches per epoch, of M = N T / minibatches = 200 samples each
-                                     # (CleanRL: 32 of 64; below about 200 a GNN step costs as much as at 200)
+    minibatches: int = 16            # minibatches per epoch, of M = N T / minibatches samples each (CleanRL: 32)
     lr: float = 3e-4                 # Adam learning rate of policy and value network
     anneal_lr: bool = True           # decay the learning rate linearly to 0 over the run
     vf_coef: float = 0.5             # c1, weight of the value loss (eqn. 9)

@@ -12,8 +12,8 @@ its runs can be spread over machines and merged into one folder before
 plotting.  The sweep then writes <name>.png, <name>.csv and <name>.md there.
 
 The results tables are never typed by hand: --tables regenerates them from
-the committed CSVs in results/ (figure3.md, figure3_iterations.md,
-sample_efficiency.md, and the per-iteration table of every CSV in
+the committed CSVs in results/ (figure3.md, figure3_claims.md, figure3_iterations.md,
+main_command.md (Figure 3's panel d), sample_efficiency.md, and the per-iteration table of every CSV in
 ITERATION_TABLES), and rewrites every block of README.md and docs/*.md between
 `<!-- begin: results/NAME.md -->` and `<!-- end: results/NAME.md -->` lines
 with results/NAME.md.
@@ -174,6 +174,57 @@ def converged_at(curve: dict, threshold: float):
     return next((i for i in sorted(curve) if curve[i] >= threshold), None)
 
 
+def panel_curves(rows: list[dict], panel: str, iters: int):
+    """One panel's curves: runs (method -> seed -> iteration -> distance), gaps (method ->
+    iteration -> [|model - simulator progress| per seed]), the mean curve per method, and the
+    convergence threshold: 90 % of the best mean at iteration `iters` of either method."""
+    runs, gaps = {}, {}
+    for r in rows:
+        if r["panel"] == panel:
+            runs.setdefault(r["method"], {}).setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
+            if r.get("model_progress_m") is not None and r.get("sim_progress_m") is not None:
+                gaps.setdefault(r["method"], {}).setdefault(r["iteration"], []).append(
+                    abs(r["model_progress_m"] - r["sim_progress_m"]))
+    mean = {m: {i: np.mean([c[i] for c in curves.values() if i in c])
+                for i in range(iters + 1) if any(i in c for c in curves.values())}
+            for m, curves in runs.items()}
+    finals = [curve[iters] for curve in mean.values() if iters in curve]
+    return runs, gaps, mean, 0.9 * max(finals) if finals else float("inf")
+
+
+# The paper's claims for Figure 3 (its caption and Sec. IV): iterations to converge, RL -> RL+IL
+PAPER_CLAIMS = {"a": ("never", 2), "b": ("1", "1 (little effect)"), "c": (3, 2), "d": (4, 1)}
+
+
+def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
+    """Markdown: the paper's two Figure 3 claims per panel beside ours.  (1) RL+IL converges in
+    fewer iterations (panel b: demos have little effect, read as within one iteration), on the
+    mean curve with summarize_figure3's rule; (2) RL+IL has less variance in convergence: the
+    range (max - min) over seeds of each seed's iteration of convergence, a seed that never
+    converges counted at iters + 1.  With a few seeds neither is settled."""
+    fmt = lambda i: "never" if i is None else str(i)                   # noqa: E731
+    capped = lambda i: iters + 1 if i is None else i                   # noqa: E731
+    lines = [f"| panel | paper: converged at, RL → RL+IL | ours, {seeds} seeds: RL → RL+IL | RL+IL sooner (b: within 1) "
+             "| ours: per seed, RL; RL+IL | range over seeds, RL → RL+IL | less variance |",
+             "|---|---|---|---|---|---|---|"]
+    for panel, (design, demos) in PANELS.items():
+        runs, _, mean, threshold = panel_curves(rows, panel, iters)
+        if set(runs) != {"RL", "RL+IL"}:
+            continue
+        at = {m: capped(converged_at(mean[m], threshold)) for m in runs}
+        per_seed = {m: [converged_at(c, threshold) for c in runs[m].values()] for m in runs}
+        spread = {m: max(map(capped, v)) - min(map(capped, v)) for m, v in per_seed.items()}
+        sooner = abs(at["RL+IL"] - at["RL"]) <= 1 if panel == "b" else at["RL+IL"] < at["RL"]
+        paper_rl, paper_rlil = PAPER_CLAIMS[panel]
+        lines.append(
+            f"| ({panel}) {design} ({' + '.join(demos)} demos) | {paper_rl} → {paper_rlil} "
+            f"| {fmt(converged_at(mean['RL'], threshold))} → {fmt(converged_at(mean['RL+IL'], threshold))} "
+            f"| {'yes' if sooner else 'no'} | {', '.join(map(fmt, per_seed['RL']))}; "
+            f"{', '.join(map(fmt, per_seed['RL+IL']))} | {spread['RL']} → {spread['RL+IL']} "
+            f"| {'yes' if spread['RL+IL'] < spread['RL'] else 'equal' if spread['RL+IL'] == spread['RL'] else 'no'} |")
+    return "\n".join(lines) + "\n"
+
+
 def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = (), panels: str = "abcd") -> str:
     """Markdown table per panel and method: iterations to converge, final distance, spread,
     the largest drop of a seed between consecutive iterations, and model exploitation.
@@ -190,22 +241,11 @@ def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[s
     lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) "
              "| spread (m) | largest drop after it. 1 (m) | exploitation (m) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
+    fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
     for panel, (design, demos) in PANELS.items():
         if panel not in panels:
             continue
-        runs, gaps = {}, {}                       # method -> seed -> iteration -> distance / |model - sim|
-        for r in rows:
-            if r["panel"] == panel:
-                runs.setdefault(r["method"], {}).setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
-                if r.get("model_progress_m") is not None and r.get("sim_progress_m") is not None:
-                    gaps.setdefault(r["method"], {}).setdefault(r["iteration"], []).append(
-                        abs(r["model_progress_m"] - r["sim_progress_m"]))
-        mean = {m: {i: np.mean([c[i] for c in curves.values() if i in c])
-                    for i in range(iters + 1) if any(i in c for c in curves.values())}
-                for m, curves in runs.items()}
-        finals = [curve[iters] for curve in mean.values() if iters in curve]
-        threshold = 0.9 * max(finals) if finals else float("inf")
-        fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
+        runs, gaps, mean, threshold = panel_curves(rows, panel, iters)
         for method in ("RL+IL", "RL"):
             curves = runs.get(method, {})
             final = [c[iters] for c in curves.values() if iters in c]
@@ -453,22 +493,26 @@ def read_rows_csv(path: Path) -> list[dict]:
 
 
 def summarize_iterations(rows: list[dict]) -> str:
-    """Markdown, per panel and method (in the CSV's order, RL+IL before RL): one row per iteration
-    with the mean and the min - max over seeds of distance_m and the number of seeds."""
-    lines = ["| panel | method | iteration | mean (m) | min - max (m) | seeds |", "|---|---|---|---|---|---|"]
+    """Markdown, one row per panel and method (RL+IL before RL): the mean over seeds of
+    distance_m at each iteration, with [min, max] over seeds."""
     groups = {}                                   # (panel, train, demos) -> method -> iteration -> distances
     for r in rows:
         panel = groups.setdefault((r["panel"], r["train"], r["demos"]), {})
         distances = panel.setdefault(r["method"], {}).setdefault(r["iteration"], [])
         if r["distance_m"] is not None:
             distances.append(r["distance_m"])
+    iterations = sorted({r["iteration"] for r in rows})
+    lines = ["| panel | method | seeds | " + " | ".join(f"iteration {i}" for i in iterations) + " |",
+             "|---|---|---|" + "---|" * len(iterations)]
     order = {"RL+IL": 0, "RL": 1}
     for (panel, design, demos), methods in groups.items():
         label = f"({panel}) {design}" + (f" ({demos.replace('+', ' + ')} demos)" if demos else "")
         for method in sorted(methods, key=lambda m: order.get(m, len(order))):
-            for i, d in sorted(methods[method].items()):
-                cells = f"{np.mean(d):.2f} | {min(d):.2f} - {max(d):.2f}" if d else " | "
-                lines.append(f"| {label} | {method} | {i} | {cells} | {len(d)} |")
+            curve = methods[method]
+            cells = [f"{np.mean(curve[i]):.2f} [{min(curve[i]):.2f}, {max(curve[i]):.2f}]" if curve.get(i) else ""
+                     for i in iterations]
+            seeds = len(curve.get(iterations[-1], []))
+            lines.append(f"| {label} | {method} | {seeds} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -488,7 +532,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     for name in ("figure3", "sample_efficiency"):
         if not (results / f"{name}.csv").exists():
             raise UsageError(f"{results / name}.csv is missing")
-    tables[results / "figure3.md"] = figure3_table(read_rows_csv(results / "figure3.csv"))
+    rows = read_rows_csv(results / "figure3.csv")
+    tables[results / "figure3.md"] = figure3_table(rows)
+    tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
+                                                             len({r["seed"] for r in rows}))
+    tables[results / "main_command.md"] = summarize_iterations([r for r in rows if r["panel"] == "d"])  # README
     rows = read_rows_csv(results / "sample_efficiency.csv")
     tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
     for name, md in ITERATION_TABLES.items():

@@ -296,7 +296,7 @@ def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
     return run.metrics
 
 
-def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
+def evaluate_run(run_dir: Path, design: str, gif: str | None = None, png: str | None = None) -> float:
     """Zero-shot or not: the saved policy on any design, distance in 200 steps from the run's
     evaluation starts."""
     ckpt = load_checkpoint(run_dir / "policy.pt")
@@ -308,9 +308,13 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None) -> float:
     d = result.distance_m
     print(f"policy {run_dir} (iteration {ckpt['iteration']}) on {graph.name} ({graph.code}): "
           f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result.flipped.sum())}")
+    title = f"{run_dir.name} on {graph.name}: {d[0]:.1f} m in {cfg.eval_steps} steps"
     if gif:
-        sim2d.save_gif(graph, result.states[0], gif, every=2)
+        sim2d.save_gif(graph, result.states[0], gif, every=2, title=title)
         print(f"wrote {gif}")
+    if png:
+        sim2d.save_png(graph, result.states[0], png, title=title)
+        print(f"wrote {png}")
     print(f"design={graph.code} distance_m={d.mean():.4f}")
     return float(d.mean())
 
@@ -387,6 +391,7 @@ def build_parser() -> sim2d.CliParser:
     p.add_argument("--eval", metavar="RUN_DIR", help="evaluate a saved policy (with --design)")
     p.add_argument("--design", help="design for --eval (any of the 728, trained on or not)")
     p.add_argument("--gif", help="with --eval: write an animation of the first start")
+    p.add_argument("--png", help="with --eval: write six snapshots of the first start")
     p.add_argument("--figure3", action="store_true",
                    help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
     p.add_argument("--seeds", type=int, default=3, help="with --figure3 or --sample-efficiency: seeds per condition (default 3)")
@@ -398,7 +403,7 @@ def build_parser() -> sim2d.CliParser:
     p.add_argument("--sample-efficiency", action="store_true",
                    help="run RL, RL+IL (Figure 3's demos) and PPO on hexapod and leg_none_wheel x seeds and plot "
                         "distance against simulator steps and seconds")
-    group = p.add_argument_group("Algorithm 1 (modular_rlil_minimal.Config; defaults: the 5-minute CPU run)")
+    group = p.add_argument_group("Algorithm 1 (modular_rlil_minimal.Config; defaults: the README's main command)")
     default, helps = rlil.Config(), {**field_help(rlil.Config), **field_help(GNNConfig)}
     for flag, dest, f in config_flags():
         value = getattr(default.gnn, f.name) if dest.startswith("gnn_") else getattr(default, f.name)
@@ -489,7 +494,7 @@ def main(argv=None) -> int:
                 sim2d.design_graph(args.design)
             except ValueError as e:
                 raise UsageError(str(e))
-            evaluate_run(Path(args.eval), args.design, args.gif)
+            evaluate_run(Path(args.eval), args.design, args.gif, args.png)
             return 0
         if not args.train:
             raise UsageError("say what to train with --train DESIGN [DESIGN ...] (or --eval RUN_DIR)")
