@@ -29,6 +29,7 @@ import csv
 import dataclasses
 import json
 import re
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -73,34 +74,88 @@ def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int, panels: st
     return runs
 
 
-def launch_runs(runs: list[dict], last: int, jobs: int, log, what: str) -> None:
-    """Run every run of a sweep whose metrics.json has not reached iteration `last` (a run's own
-    "last" if it has one) as its own train.py process, `jobs` at a time, continuing interrupted
-    ones with --resume; each run's output goes to its train.log, its exit status to r["returncode"]."""
+LAUNCHERS = ("local", "ray")
+
+
+def run_command(run: dict) -> list[str]:
+    """The train.py command of one run: its arguments and directory, --resume once it has a checkpoint."""
+    cmd = [sys.executable, str(Path(train.__file__).resolve()), *run["args"], "--out", str(run["dir"])]
+    return cmd + (["--resume"] if (run["dir"] / "checkpoint.pt").exists() else [])
+
+
+def run_one(cmd: list[str], run_dir: str) -> int:
+    """Run one train.py command, its output appended to run_dir/train.log; returns its exit status."""
     import subprocess
+    Path(run_dir).mkdir(parents=True, exist_ok=True)
+    with open(Path(run_dir) / "train.log", "a") as f:
+        return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode
+
+
+def unfinished(runs: list[dict], last: int) -> list[dict]:
+    """The runs whose metrics.json has not reached iteration `last` (a run's own "last" if it has one)."""
+    return [r for r in runs if last_iteration(r["dir"]) < r.get("last", last)]
+
+
+def plan_lines(runs: list[dict], last: int) -> list[str]:
+    """One shell line per unfinished run, for a SLURM job array, GNU parallel or any scheduler:
+    `mkdir -p DIR && python .../train.py ARGS --out DIR >> DIR/train.log 2>&1`."""
+    q = shlex.quote
+    return [f"mkdir -p {q(str(r['dir']))} && {' '.join(map(q, ['python', *run_command(r)[1:]]))} "
+            f">> {q(str(r['dir'] / 'train.log'))} 2>&1" for r in unfinished(runs, last)]
+
+
+def ray_results(todo: list[dict], jobs: int, address: str | None):
+    """Yield (run, exit status) as Ray tasks finish, one task of one CPU per run's train.py command:
+    on the cluster at `address`, else on a local Ray instance of `jobs` CPUs.  The workers must see
+    this repository and the sweep folder at the same paths (a shared filesystem)."""
+    try:
+        import ray
+    except ImportError:
+        raise UsageError("--launcher ray needs Ray: pip install -r requirements-ray.txt")
+
+    def task(cmd, run_dir):                       # defined here so Ray ships it by value to any worker
+        return run_one(cmd, run_dir)
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address, num_cpus=None if address else jobs, include_dashboard=False,
+                 log_to_driver=False)
+    remote = ray.remote(num_cpus=1)(task)
+    pending = {remote.remote(run_command(r), str(r["dir"])): r for r in todo}
+    try:
+        while pending:
+            [ref], _ = ray.wait(list(pending), num_returns=1)
+            yield pending.pop(ref), ray.get(ref)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def launch_runs(runs: list[dict], last: int, jobs: int, log, what: str, launcher: str = "local",
+                ray_address: str | None = None) -> None:
+    """Run every unfinished run of a sweep as its own train.py process, continuing interrupted ones
+    with --resume: `jobs` at a time as local processes, or as Ray tasks (`ray_results`).  Each
+    run's output goes to its train.log, its exit status to r["returncode"]."""
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    t0 = time.perf_counter()
-    todo = [r for r in runs if last_iteration(r["dir"]) < r.get("last", last)]
-    log(f"{what}: {len(runs)} runs, {len(runs) - len(todo)} already finished, {jobs} at a time")
+    t0, todo = time.perf_counter(), unfinished(runs, last)
+    where = f"on Ray ({ray_address or 'a local instance'})" if launcher == "ray" else f"{jobs} at a time"
+    log(f"{what}: {len(runs)} runs, {len(runs) - len(todo)} already finished, {where}")
 
-    def launch(run):
-        cmd = [sys.executable, str(Path(train.__file__).resolve()), *run["args"], "--out", str(run["dir"])]
-        if (run["dir"] / "checkpoint.pt").exists():
-            cmd.append("--resume")
-        run["dir"].mkdir(parents=True, exist_ok=True)
-        with open(run["dir"] / "train.log", "a") as f:
-            return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode
+    def finished(done: int, r: dict, code: int) -> None:
+        r["returncode"] = code
+        status = "ok" if code == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
+        log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
+            f"{(time.perf_counter() - t0) / done * (len(todo) - done):.0f} s left")
 
+    if launcher == "ray":
+        for done, (r, code) in enumerate(ray_results(todo, jobs, ray_address), 1):
+            finished(done, r, code)
+        return
     with ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(launch, r): r for r in todo}
+        futures = {pool.submit(run_one, run_command(r), str(r["dir"])): r for r in todo}
         for done, future in enumerate(as_completed(futures), 1):
-            r = futures[future]
-            r["returncode"] = future.result()
-            status = "ok" if r["returncode"] == 0 else f"FAILED (see {r['dir'] / 'train.log'})"
-            elapsed = time.perf_counter() - t0
-            log(f"run {done}/{len(todo)} {r['dir'].name}: {status}; about "
-                f"{elapsed / done * (len(todo) - done):.0f} s left")
+            finished(done, futures[future], future.result())
 
 
 def last_iteration(run_dir: Path) -> int:
@@ -119,19 +174,23 @@ def finished_iterations(run_dir: Path) -> int:
         return -1
 
 
-def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd") -> list[str]:
+def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd",
+            launcher: str = "local", ray_address: str | None = None, collect: Path | None = None) -> list[str]:
     """Run (or reuse) every run of the sweep as its own train.py process, then plot and tabulate.
 
     Each run is a normal run directory under `out`, so a sweep resumes (finished
     runs are reused, interrupted ones continue) and its runs can be spread over
-    machines by any scheduler and merged into one `out` before plotting.
-    Returns the runs that failed or did not finish all `base.iters` iterations,
+    machines by any scheduler (`plan_lines`) and merged into one folder.  With
+    `collect`, nothing runs: the figure, CSV and summary are made from the run
+    directories under `collect` that exist, and written to `out`.  Returns the
+    runs that failed, are missing or did not finish all `base.iters` iterations,
     one line each; they are named in the summary and on the plot too.
     """
     log = log or rlil.ProgressLog()
     out.mkdir(parents=True, exist_ok=True)
-    runs = figure3_runs(out, base, seeds, jobs, panels)
-    launch_runs(runs, base.iters, jobs, log, "figure 3")
+    runs = figure3_runs(collect or out, base, seeds, jobs, panels)
+    if collect is None:
+        launch_runs(runs, base.iters, jobs, log, "figure 3", launcher, ray_address)
     problems = []
     for r in runs:
         n = finished_iterations(r["dir"])
@@ -150,7 +209,7 @@ def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panel
 
 
 FIGURE3_COLUMNS = ["panel", "train", "demos", "method", "seed", "iteration", "distance_m",
-                   "model_progress_m", "sim_progress_m"]
+                   "model_progress_m", "sim_progress_m", "seconds", "cpu_capability"]
 
 
 def figure3_rows(runs: list[dict]) -> list[dict]:
@@ -159,12 +218,14 @@ def figure3_rows(runs: list[dict]) -> list[dict]:
     rows = []
     for r in runs:
         try:
-            metrics = json.loads((r["dir"] / "metrics.json").read_text())["iterations"]
+            saved = json.loads((r["dir"] / "metrics.json").read_text())
+            metrics, cpu = saved["iterations"], saved["config"]["versions"].get("cpu_capability")
         except (OSError, ValueError, KeyError):
             continue
         rows += [{"panel": r["panel"], "train": r["train"], "demos": r["demos"], "method": r["method"],
                   "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"],
-                  "model_progress_m": m.get("model_progress_m"), "sim_progress_m": m.get("sim_progress_m")}
+                  "model_progress_m": m.get("model_progress_m"), "sim_progress_m": m.get("sim_progress_m"),
+                  "seconds": m.get("seconds"), "cpu_capability": cpu}
                  for m in metrics]
     return rows
 
@@ -192,76 +253,195 @@ def panel_curves(rows: list[dict], panel: str, iters: int):
     return runs, gaps, mean, 0.9 * max(finals) if finals else float("inf")
 
 
-# The paper's claims for Figure 3 (its caption and Sec. IV): iterations to converge, RL -> RL+IL
-PAPER_CLAIMS = {"a": ("never", 2), "b": ("1", "1 (little effect)"), "c": (3, 2), "d": (4, 1)}
+# ----------------------------------------------------------------------------
+# Statistics over seeds, numpy only (rliable: Agarwal et al. 2021; Henderson et al. 2018)
+# ----------------------------------------------------------------------------
+RESAMPLES = 10_000           # bootstrap resamples per interval
+LEVEL = 0.95                 # confidence level of every interval
+
+
+def resample(x, resamples: int, rng: np.random.Generator) -> np.ndarray:
+    """(resamples, n): the n runs of x drawn with replacement, `resamples` times."""
+    x = np.asarray(x, float)
+    return x[rng.integers(len(x), size=(resamples, len(x)))]
+
+
+def percentile_interval(values) -> tuple[float, float]:
+    """The central LEVEL interval of bootstrap values: their 2.5th and 97.5th percentiles."""
+    tail = 100 * (1 - LEVEL) / 2
+    lo, hi = np.percentile(values, [tail, 100 - tail])
+    return float(lo), float(hi)
+
+
+def bootstrap_ci(x, statistic=np.mean, resamples: int = RESAMPLES, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of statistic(x) over runs (statistic takes axis=-1).
+
+    Example: x = [0, 1] resamples to the means 0, 0.5 and 1 with probabilities
+    1/4, 1/2 and 1/4, so the 95 % interval is (0, 1).
+    """
+    return percentile_interval(statistic(resample(x, resamples, np.random.default_rng(seed)), axis=-1))
+
+
+def bootstrap_diff_ci(x, y, statistic=np.mean, resamples: int = RESAMPLES, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of statistic(x) - statistic(y), each condition's runs resampled on its own."""
+    rng = np.random.default_rng(seed)
+    return percentile_interval(statistic(resample(x, resamples, rng), axis=-1)
+                               - statistic(resample(y, resamples, rng), axis=-1))
+
+
+def probability_of_improvement(x, y):
+    """P(X > Y) over runs (rliable): the mean over all pairs (i, j) of 1 if x_i > y_j, 1/2 if equal,
+    0 otherwise, which is the Mann-Whitney U statistic divided by n m.  Leading axes are batches.
+
+    Example: x = [1, 2, 3], y = [2, 2]: the six pairs score 0, 0, 1/2, 1/2, 1, 1, so 0.5.
+    """
+    x, y = np.asarray(x, float)[..., :, None], np.asarray(y, float)[..., None, :]
+    p = ((x > y) + 0.5 * (x == y)).mean((-2, -1))
+    return float(p) if p.ndim == 0 else p
+
+
+def probability_of_improvement_ci(x, y, resamples: int = RESAMPLES, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of P(X > Y), each condition's runs resampled on its own."""
+    rng = np.random.default_rng(seed)
+    return percentile_interval(probability_of_improvement(resample(x, resamples, rng), resample(y, resamples, rng)))
+
+
+def area_under_curve(curve: dict, iters: int):
+    """A run's mean distance over iterations 1..iters (one number for "learns faster"); None if unfinished."""
+    return float(np.mean([curve[i] for i in range(1, iters + 1)])) if all(i in curve for i in range(1, iters + 1)) \
+        else None
+
+
+def iterations_to_converge(curve: dict, threshold: float, iters: int) -> int:
+    """`converged_at` for one run, a run that never converges counted at the cap iters + 1."""
+    at = converged_at(curve, threshold)
+    return iters + 1 if at is None else at
+
+
+def per_run(rows: list[dict], panel: str, iters: int) -> dict:
+    """method -> {"converge": [iterations to converge per finished run], "auc": [...], "final": [...]},
+    with summarize_figure3's convergence threshold of the panel."""
+    runs, _, _, threshold = panel_curves(rows, panel, iters)
+    out = {}
+    for method, curves in runs.items():
+        done = [c for c in curves.values() if area_under_curve(c, iters) is not None]
+        out[method] = {"converge": [iterations_to_converge(c, threshold, iters) for c in done],
+                       "auc": [area_under_curve(c, iters) for c in done], "final": [c[iters] for c in done]}
+    return out
+
+
+def verdict(ci: tuple[float, float], margin: float | None = None) -> str:
+    """"holds" / "fails" / "not settled" for a difference's CI: with no margin, the claim is that the
+    difference is above 0; with a margin, that it lies within +-margin (no real effect)."""
+    lo, hi = ci
+    if margin is None:
+        return "holds" if lo > 0 else "fails" if hi < 0 else "not settled"
+    return "holds" if -margin <= lo and hi <= margin else "fails" if hi < -margin or lo > margin else "not settled"
+
+
+def interval(ci) -> str:
+    return f"[{ci[0]:.2f}, {ci[1]:.2f}]"
+
+
+# The paper's claims for Figure 3 (its caption and Sec. IV), fixed before the 10-seed sweep ran:
+# (b)'s "little effect" is read as a difference within LITTLE_EFFECT of 0.
+LITTLE_EFFECT = {"iterations": 1.0, "m": 1.0}
 
 
 def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
-    """Markdown: the paper's two Figure 3 claims per panel beside ours.  (1) RL+IL converges in
-    fewer iterations (panel b: demos have little effect, read as within one iteration), on the
-    mean curve with summarize_figure3's rule; (2) RL+IL has less variance in convergence: the
-    range (max - min) over seeds of each seed's iteration of convergence, a seed that never
-    converges counted at iters + 1.  With a few seeds neither is settled."""
-    fmt = lambda i: "never" if i is None else str(i)                   # noqa: E731
-    capped = lambda i: iters + 1 if i is None else i                   # noqa: E731
-    lines = [f"| panel | paper: converged at, RL → RL+IL | ours, {seeds} seeds: RL → RL+IL | RL+IL sooner (b: within 1) "
-             "| ours: per seed, RL; RL+IL | range over seeds, RL → RL+IL | less variance |",
-             "|---|---|---|---|---|---|---|"]
+    """Markdown: each of the paper's Figure 3 claims per panel, the statistic that tests it, its
+    95 % bootstrap CI, and holds / not settled / fails (`verdict`).
+
+    Iterations to converge: summarize_figure3's rule per seed, a seed that never converges
+    counted at iters + 1.  (a), (c), (d): RL+IL converges in fewer iterations (mean RL - RL+IL
+    above 0) and learns faster (area under the curve, RL+IL - RL, above 0, with P(RL+IL > RL));
+    (b): the car's demos have little effect (both differences within LITTLE_EFFECT); all four:
+    RL+IL lowers the variance of convergence (std RL - RL+IL above 0).
+    """
+    lines = [f"| panel | claim | statistic ({seeds} seeds per method; a seed that never converges counts "
+             f"{iters + 1}) | value | 95 % CI | verdict |",
+             "|---|---|---|---|---|---|"]
+    std = lambda x, axis=-1: np.std(x, axis=axis)                      # noqa: E731
     for panel, (design, demos) in PANELS.items():
-        runs, _, mean, threshold = panel_curves(rows, panel, iters)
-        if set(runs) != {"RL", "RL+IL"}:
+        stats = per_run(rows, panel, iters)
+        if set(stats) != {"RL", "RL+IL"} or not all(stats[m]["auc"] for m in stats):
             continue
-        at = {m: capped(converged_at(mean[m], threshold)) for m in runs}
-        per_seed = {m: [converged_at(c, threshold) for c in runs[m].values()] for m in runs}
-        spread = {m: max(map(capped, v)) - min(map(capped, v)) for m, v in per_seed.items()}
-        sooner = abs(at["RL+IL"] - at["RL"]) <= 1 if panel == "b" else at["RL+IL"] < at["RL"]
-        paper_rl, paper_rlil = PAPER_CLAIMS[panel]
-        lines.append(
-            f"| ({panel}) {design} ({' + '.join(demos)} demos) | {paper_rl} → {paper_rlil} "
-            f"| {fmt(converged_at(mean['RL'], threshold))} → {fmt(converged_at(mean['RL+IL'], threshold))} "
-            f"| {'yes' if sooner else 'no'} | {', '.join(map(fmt, per_seed['RL']))}; "
-            f"{', '.join(map(fmt, per_seed['RL+IL']))} | {spread['RL']} → {spread['RL+IL']} "
-            f"| {'yes' if spread['RL+IL'] < spread['RL'] else 'equal' if spread['RL+IL'] == spread['RL'] else 'no'} |")
+        rl, rlil = stats["RL"], stats["RL+IL"]
+        name = f"({panel}) {design}"
+        little = panel == "b"
+        conv = bootstrap_diff_ci(rl["converge"], rlil["converge"])
+        auc = bootstrap_diff_ci(rlil["auc"], rl["auc"])
+        lines.append(f"| {name} | {'demos have little effect on convergence' if little else 'RL+IL converges in fewer iterations'} "
+                     f"| mean iterations to converge, RL − RL+IL ({np.mean(rl['converge']):.1f} − "
+                     f"{np.mean(rlil['converge']):.1f}) | {np.mean(rl['converge']) - np.mean(rlil['converge']):.2f} "
+                     f"| {interval(conv)} | {verdict(conv, LITTLE_EFFECT['iterations'] if little else None)} |")
+        lines.append(f"| {name} | {'demos have little effect on distance' if little else 'RL+IL learns faster'} "
+                     f"| area under the curve (mean m over iterations 1-{iters}), RL+IL − RL; "
+                     f"P(RL+IL > RL) = {probability_of_improvement(rlil['auc'], rl['auc']):.2f} "
+                     f"{interval(probability_of_improvement_ci(rlil['auc'], rl['auc']))} "
+                     f"| {np.mean(rlil['auc']) - np.mean(rl['auc']):.2f} | {interval(auc)} "
+                     f"| {verdict(auc, LITTLE_EFFECT['m'] if little else None)} |")
+        spread = bootstrap_diff_ci(rl["converge"], rlil["converge"], statistic=std)
+        lines.append(f"| {name} | RL+IL lowers the variance of convergence | std of iterations to converge, "
+                     f"RL − RL+IL ({np.std(rl['converge']):.2f} − {np.std(rlil['converge']):.2f}) "
+                     f"| {np.std(rl['converge']) - np.std(rlil['converge']):.2f} | {interval(spread)} "
+                     f"| {verdict(spread)} |")
     return "\n".join(lines) + "\n"
 
 
-def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = (), panels: str = "abcd") -> str:
-    """Markdown table per panel and method: iterations to converge, final distance, spread,
-    the largest drop of a seed between consecutive iterations, and model exploitation.
+def provenance(rows: list[dict]) -> str:
+    """One line: how many runs, on which CPU capabilities, and their summed time."""
+    cpus, seconds = {}, 0.0
+    for r in rows:
+        if r["iteration"] == 0:
+            cpus[r.get("cpu_capability") or "not recorded"] = cpus.get(r.get("cpu_capability") or "not recorded", 0) + 1
+        seconds += r.get("seconds") or 0.0
+    where = ", ".join(f"{n} with CPU capability {cpu}" for cpu, n in sorted(cpus.items()))
+    return (f"{sum(cpus.values())} runs ({where}, as torch reports it; one torch thread each); "
+            f"their iterations took {seconds / 3600:.1f} h of one core in all.")
 
-    Converged = the first iteration whose mean over seeds reaches 90 % of the
-    best mean at iteration `iters` of either method in that panel (per seed: of
-    that seed's curve).  Means are over the seeds that reached an iteration;
-    the "seeds" column says how many reached the last one.  Spread = max - min
-    over seeds, averaged over iterations 1..iters.  Largest drop = the largest
-    fall of one seed from one iteration to the next after iteration 1.
-    Exploitation = the largest, over iterations >= 1, of the mean over seeds of
-    |model_progress_m - sim_progress_m| (the first T steps).
+
+def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[str] = (), panels: str = "abcd") -> str:
+    """Markdown: the runs' provenance, then per panel and method: iterations to converge (per seed
+    and their median with its 95 % bootstrap CI), the area under the curve and the final distance
+    (mean with CI), the final min-max, the largest drop of a seed, and model exploitation.
+
+    Converged = the first iteration whose distance reaches 90 % of the best mean
+    at iteration `iters` of either method in that panel; a seed that never does
+    is counted at iters + 1 ("never") in the median.  Area under the curve = a
+    run's mean distance over iterations 1..iters.  Largest drop = the largest
+    fall of one seed from one iteration to the next after iteration 1 (negative
+    when every seed only rises).  Exploitation = the largest, over iterations
+    >= 1, of the mean over seeds of |model_progress_m - sim_progress_m| (the
+    first T steps).  Statistics are over the seeds that finished.
     """
-    lines = ["| panel | method | seeds | converged at (mean curve) | per seed | final mean (m) | final min-max (m) "
-             "| spread (m) | largest drop after it. 1 (m) | exploitation (m) |",
+    lines = [provenance(rows), "",
+             "| panel | method | seeds | iterations to converge, per seed | median [95 % CI] "
+             "| area under the curve (m) [95 % CI] | final (m) [95 % CI] | final min-max (m) "
+             "| largest drop after it. 1 (m) | exploitation (m) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
-    fmt = lambda i: "not converged" if i is None else str(i)          # noqa: E731
+    fmt = lambda i: "never" if i == iters + 1 else str(i)             # noqa: E731
     for panel, (design, demos) in PANELS.items():
         if panel not in panels:
             continue
-        runs, gaps, mean, threshold = panel_curves(rows, panel, iters)
+        runs, gaps, _, _ = panel_curves(rows, panel, iters)
+        stats = per_run(rows, panel, iters)
         for method in ("RL+IL", "RL"):
-            curves = runs.get(method, {})
-            final = [c[iters] for c in curves.values() if iters in c]
-            head = f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} | {len(final)} of {seeds} |"
-            if not final:
-                lines.append(head + " no run finished | | | | | | |")
+            head = f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} |"
+            st = stats.get(method)
+            if not st or not st["final"]:
+                lines.append(f"{head} 0 of {seeds} | no run finished | | | | | | |")
                 continue
-            per_seed = [converged_at(c, threshold) for c in curves.values()]
-            spread = np.mean([np.ptp([c[i] for c in curves.values() if i in c]) for i in range(1, iters + 1)])
-            drops = [c[i] - c[i + 1] for c in curves.values() for i in range(1, iters) if i + 1 in c]
+            drops = [c[i] - c[i + 1] for c in runs[method].values() for i in range(1, iters) if i + 1 in c]
             gap = max((np.mean(v) for v in gaps.get(method, {}).values()), default=float("nan"))
-            lines.append(f"{head} {fmt(converged_at(mean[method], threshold))} | {', '.join(map(fmt, per_seed))} | "
-                         f"{np.mean(final):.2f} | {min(final):.2f} - {max(final):.2f} | {spread:.2f} | "
-                         f"{max(drops, default=0.0):.2f} | {gap:.2f} |")
+            lines.append(f"{head} {len(st['final'])} of {seeds} | {', '.join(map(fmt, st['converge']))} "
+                         f"| {np.median(st['converge']):g} {interval(bootstrap_ci(st['converge'], np.median))} "
+                         f"| {np.mean(st['auc']):.2f} {interval(bootstrap_ci(st['auc']))} "
+                         f"| {np.mean(st['final']):.2f} {interval(bootstrap_ci(st['final']))} "
+                         f"| {min(st['final']):.2f} - {max(st['final']):.2f} "
+                         f"| {max(drops, default=0.0):.2f} | {gap:.2f} |")
     if problems:
-        lines += ["", "Missing or failed runs (left out of the means above):"] + [f"- {p}" for p in problems]
+        lines += ["", "Missing or failed runs (left out of the statistics above):"] + [f"- {p}" for p in problems]
     return "\n".join(lines) + "\n"
 
 
@@ -287,7 +467,8 @@ def save_sweep_plot(fig, path: Path, problems: list[str]) -> None:
 
 
 def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] = (), panels: str = "abcd") -> None:
-    """figure3.csv and figure3.png: mean over seeds as a line, min-max as a band."""
+    """figure3.csv and figure3.png: the mean over seeds as a line, its 95 % bootstrap CI as a band,
+    min and max over seeds as dotted lines."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -309,7 +490,10 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
             counts = sorted({len(table[i]) for i in it})
             seeds = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
             ax.plot(it, [np.mean(table[i]) for i in it], "o-", color=colour, label=f"{method} ({seeds} seeds)")
-            ax.fill_between(it, [min(table[i]) for i in it], [max(table[i]) for i in it], color=colour, alpha=0.2)
+            band = [bootstrap_ci(table[i]) for i in it]                              # 95 % CI of the mean
+            ax.fill_between(it, [lo for lo, _ in band], [hi for _, hi in band], color=colour, alpha=0.25)
+            for edge in (min, max):                                                   # min-max over seeds
+                ax.plot(it, [edge(table[i]) for i in it], ":", color=colour, lw=1)
         ax.set_title(f"({panel}) {design}, demos: {' + '.join(demos)}", fontsize=10)
         ax.set_xlabel("iteration")
         ax.set_xticks(range(iters + 1))
@@ -441,13 +625,16 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
 
 
 def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int, jobs: int,
-                      log=None) -> list[str]:
-    """Run (or reuse) every run as its own train.py process, then plot, tabulate and summarise
-    (sample_efficiency.png, .csv, .md in `out`).  Returns the runs that failed or did not finish."""
+                      log=None, launcher: str = "local", ray_address: str | None = None,
+                      collect: Path | None = None) -> list[str]:
+    """Run (or reuse) every run as its own train.py process (or, with `collect`, only read the run
+    directories under `collect`), then plot, tabulate and summarise (sample_efficiency.png, .csv,
+    .md in `out`).  Returns the runs that failed, are missing or did not finish."""
     log = log or rlil.ProgressLog()
     out.mkdir(parents=True, exist_ok=True)
-    runs = sample_efficiency_runs(out, base, base_ppo, seeds, jobs)
-    launch_runs(runs, 0, jobs, log, "sample efficiency")
+    runs = sample_efficiency_runs(collect or out, base, base_ppo, seeds, jobs)
+    if collect is None:
+        launch_runs(runs, 0, jobs, log, "sample efficiency", launcher, ray_address)
     problems = [f"{r['train']} {r['method']} seed {r['seed']}: "
                 + (f"exit status {r['returncode']}, " if r.get("returncode", 0) != 0 else "")
                 + f"{max(last_iteration(r['dir']), 0)} of {r['last']} iterations ({r['dir']})"
@@ -472,7 +659,7 @@ ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md
     "figure3": "figure3_iterations",
     "class_demo": "class_demo",
 }
-TEXT_COLUMNS = {"panel", "train", "demos", "method"}
+TEXT_COLUMNS = {"panel", "train", "demos", "method", "cpu_capability"}
 BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
 
 
@@ -493,26 +680,23 @@ def read_rows_csv(path: Path) -> list[dict]:
 
 
 def summarize_iterations(rows: list[dict]) -> str:
-    """Markdown, one row per panel and method (RL+IL before RL): the mean over seeds of
-    distance_m at each iteration, with [min, max] over seeds."""
+    """Markdown, per panel and method (RL+IL before RL) and iteration: the number of seeds, the mean
+    of distance_m over them with its 95 % bootstrap CI, and its min - max."""
     groups = {}                                   # (panel, train, demos) -> method -> iteration -> distances
     for r in rows:
         panel = groups.setdefault((r["panel"], r["train"], r["demos"]), {})
         distances = panel.setdefault(r["method"], {}).setdefault(r["iteration"], [])
         if r["distance_m"] is not None:
             distances.append(r["distance_m"])
-    iterations = sorted({r["iteration"] for r in rows})
-    lines = ["| panel | method | seeds | " + " | ".join(f"iteration {i}" for i in iterations) + " |",
-             "|---|---|---|" + "---|" * len(iterations)]
+    lines = ["| panel | method | iteration | seeds | mean (m) | 95 % CI of the mean (m) | min - max (m) |",
+             "|---|---|---|---|---|---|---|"]
     order = {"RL+IL": 0, "RL": 1}
     for (panel, design, demos), methods in groups.items():
         label = f"({panel}) {design}" + (f" ({demos.replace('+', ' + ')} demos)" if demos else "")
         for method in sorted(methods, key=lambda m: order.get(m, len(order))):
-            curve = methods[method]
-            cells = [f"{np.mean(curve[i]):.2f} [{min(curve[i]):.2f}, {max(curve[i]):.2f}]" if curve.get(i) else ""
-                     for i in iterations]
-            seeds = len(curve.get(iterations[-1], []))
-            lines.append(f"| {label} | {method} | {seeds} | " + " | ".join(cells) + " |")
+            for i, d in sorted(methods[method].items()):
+                lines.append(f"| {label} | {method} | {i} | {len(d)} | {np.mean(d):.2f} | "
+                             f"{interval(bootstrap_ci(d))} | {min(d):.2f} - {max(d):.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -590,6 +774,23 @@ def tables(root: Path = None, check: bool = False) -> list[Path]:
     return stale
 
 
+def keep_metrics(src: Path, dest: Path) -> list[str]:
+    """Copy the metrics.json of every finished run directory under `src` (its last row at the
+    iteration its config asks for) to dest/<run name>/metrics.json, the small per-run results a
+    sweep is committed as; `--collect dest` rebuilds the figure from them, and copied into a sweep
+    folder they count as finished runs.  Returns the run names copied."""
+    kept = []
+    for path in sorted(Path(src).glob("*/metrics.json")):
+        saved = json.loads(path.read_text())
+        last = saved["config"].get("iters") if "iters" in saved["config"] else None
+        if last is None or not saved["iterations"] or saved["iterations"][-1]["iteration"] < last:
+            continue                                            # PPO runs, or unfinished ones
+        (dest / path.parent.name).mkdir(parents=True, exist_ok=True)
+        atomic_write(dest / path.parent.name / "metrics.json", lambda p, t=path.read_text(): Path(p).write_text(t))
+        kept.append(path.parent.name)
+    return kept
+
+
 def main(argv=None) -> int:
     parser = sim2d.CliParser(description="Sweeps of train.py runs (run them with train.py --figure3 or "
                              "--sample-efficiency) and the results tables made from their CSVs.")
@@ -598,9 +799,19 @@ def main(argv=None) -> int:
                              "blocks between <!-- begin: results/NAME.md --> and <!-- end: ... --> lines")
     parser.add_argument("--check", action="store_true",
                         help="with --tables: write nothing; exit 1 naming every file that differs")
+    parser.add_argument("--keep-metrics", nargs=2, metavar=("SWEEP_DIR", "DEST"),
+                        help="copy the metrics.json of every finished Algorithm 1 run in SWEEP_DIR to "
+                             "DEST/<run name>/ (what is committed of a sweep)")
     args = parser.parse_args(argv)
+    if args.keep_metrics:
+        src, dest = map(Path, args.keep_metrics)
+        if not src.is_dir():
+            parser.error(f"--keep-metrics: {src} is not a folder of run directories")
+        print(f"kept {len(keep_metrics(src, dest))} finished runs' metrics.json in {dest}")
+        return 0
     if not args.tables:
-        parser.error("say --tables (the sweeps themselves run with train.py --figure3 or --sample-efficiency)")
+        parser.error("say --tables or --keep-metrics (the sweeps themselves run with train.py --figure3 "
+                     "or --sample-efficiency)")
     try:
         stale = tables(ROOT, check=args.check)
     except UsageError as e:

@@ -397,6 +397,15 @@ def build_parser() -> sim2d.CliParser:
     p.add_argument("--seeds", type=int, default=3, help="with --figure3 or --sample-efficiency: seeds per condition (default 3)")
     p.add_argument("--jobs", type=int, default=2, help="with --figure3 or --sample-efficiency: runs in parallel processes (default 2)")
     p.add_argument("--panels", default="abcd", help="with --figure3: which panels, e.g. ad (default abcd)")
+    p.add_argument("--launcher", choices=sweeps_launchers(), default="local",
+                   help="with a sweep: local processes (--jobs at a time), or Ray tasks of one CPU each "
+                        "(pip install -r requirements-ray.txt)")
+    p.add_argument("--ray-address", metavar="ADDR", help="with --launcher ray: join this running Ray cluster "
+                   "(default: start a local instance of --jobs CPUs)")
+    p.add_argument("--plan", action="store_true", help="with a sweep: print one shell command per unfinished "
+                   "run (for a SLURM job array, GNU parallel, ...) and run nothing")
+    p.add_argument("--collect", metavar="DIR", help="with a sweep: run nothing; make the plot, CSV and summary "
+                   "from the run directories in DIR (written to --out, default DIR), naming the missing ones")
     p.add_argument("--method", choices=("rlil", "ppo"), default="rlil",
                    help="rlil: Algorithm 1 (RL+IL with --demos, else RL); ppo: the model-free baseline "
                         "(ppo_minimal.py) on the same modular policy")
@@ -450,6 +459,54 @@ def config_from_args(args, method: str | None = None, strict: bool = True):
     return cfg
 
 
+def sweeps_launchers() -> tuple[str, ...]:
+    return ("local", "ray")                       # sweeps.LAUNCHERS, without importing sweeps here
+
+
+def sweep(args) -> int:
+    """--figure3 or --sample-efficiency: run, plan or collect the sweep (sweeps.py); exit status 1 when
+    a run is missing or failed."""
+    sys.modules.setdefault("train", sys.modules[__name__])   # run as a script: sweeps gets this module
+    import sweeps                                             # sweeps imports train: not at the top
+    if args.seeds < 1 or args.jobs < 1:
+        raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
+    if args.ray_address and args.launcher != "ray":
+        raise UsageError("--ray-address goes with --launcher ray")
+    if (args.plan or args.collect) and args.launcher != "local":
+        raise UsageError("--plan and --collect launch nothing: leave out --launcher")
+    if args.plan and args.collect:
+        raise UsageError("--plan and --collect exclude each other")
+    if args.collect and not Path(args.collect).is_dir():
+        raise UsageError(f"--collect {args.collect}: no such folder of run directories")
+    collect = Path(args.collect) if args.collect else None
+    out = Path(args.out) if args.out else collect or Path("runs/figure3" if args.figure3 else "runs/sample_efficiency")
+    if args.figure3:
+        if not args.panels or set(args.panels) - set(sweeps.PANELS):
+            raise UsageError(f"--panels takes letters from abcd, got {args.panels!r}")
+        base = config_from_args(args)
+        if args.plan:
+            return print_plan(sweeps.plan_lines(sweeps.figure3_runs(out, base, args.seeds, args.jobs, args.panels),
+                                                base.iters))
+        problems = sweeps.figure3(out, base, args.seeds, args.jobs, panels=args.panels, launcher=args.launcher,
+                                  ray_address=args.ray_address, collect=collect)
+    else:
+        base, base_ppo = config_from_args(args, "rlil", strict=False), config_from_args(args, "ppo", strict=False)
+        if args.plan:
+            return print_plan(sweeps.plan_lines(sweeps.sample_efficiency_runs(out, base, base_ppo, args.seeds,
+                                                                              args.jobs), 0))
+        problems = sweeps.sample_efficiency(out, base, base_ppo, args.seeds, args.jobs, launcher=args.launcher,
+                                            ray_address=args.ray_address, collect=collect)
+    return 1 if problems else 0
+
+
+def print_plan(lines: list[str]) -> int:
+    """The plan on stdout, one command per line (nothing else there); a count on stderr."""
+    for line in lines:
+        print(line)
+    print(f"{len(lines)} runs to do", file=sys.stderr)
+    return 0
+
+
 def resume_hint(out: Path, argv: list[str]) -> str:
     """The one line Ctrl-C prints: what `out` keeps and the command that continues the run."""
     try:
@@ -470,23 +527,9 @@ def main(argv=None) -> int:
     out = None                                    # the run directory a Ctrl-C reports on
     try:
         if args.sample_efficiency or args.figure3:
-            sys.modules.setdefault("train", sys.modules[__name__])   # run as a script: sweeps gets this module
-            import sweeps                         # sweeps imports train: not at the top
-        if args.sample_efficiency:
-            if args.seeds < 1 or args.jobs < 1:
-                raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
-            problems = sweeps.sample_efficiency(Path(args.out or "runs/sample_efficiency"),
-                                                config_from_args(args, "rlil", strict=False),
-                                                config_from_args(args, "ppo", strict=False), args.seeds, args.jobs)
-            return 1 if problems else 0
-        if args.figure3:
-            if args.seeds < 1 or args.jobs < 1:
-                raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
-            if not args.panels or set(args.panels) - set(sweeps.PANELS):
-                raise UsageError(f"--panels takes letters from abcd, got {args.panels!r}")
-            problems = sweeps.figure3(Path(args.out or "runs/figure3"), config_from_args(args), args.seeds,
-                                      args.jobs, panels=args.panels)
-            return 1 if problems else 0
+            return sweep(args)
+        if args.launcher != "local" or args.ray_address or args.plan or args.collect:
+            raise UsageError("--launcher, --ray-address, --plan and --collect go with --figure3 or --sample-efficiency")
         if args.eval:
             if not args.design:
                 raise UsageError("--eval needs --design DESIGN")

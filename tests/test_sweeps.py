@@ -1,15 +1,21 @@
-"""Tests of the results tables (sweeps.py --tables): no committed table is typed by hand.
+"""Tests of sweeps.py: the launchers, the plan and collect path, the statistics over seeds, and
+the results tables (no committed table is typed by hand).
 
 The committed results/*.md and every README.md / docs/*.md block between
 `<!-- begin: results/NAME.md -->` and `<!-- end: results/NAME.md -->` must be
 what the tables command makes from the committed CSVs, and a changed CSV must
-change them (so the check can fail).  The sweeps themselves are tested in
-test_rlil.py (Figure 3) and test_ppo.py (sample efficiency).
+change them (so the check can fail).  Figure 3's reuse of finished runs is
+tested in test_rlil.py, the sample-efficiency sweep in test_ppo.py.
 """
 import csv
+import dataclasses
 import shutil
+import subprocess
 
+import numpy as np
 import pytest
+
+import modular_rlil_minimal as rlil
 
 import sweeps
 import train
@@ -73,7 +79,7 @@ def test_class_demo_csv_gets_its_per_iteration_table_and_a_missing_one_is_skippe
     sweeps.write_rows_csv(root / "results" / "class_demo.csv", sweeps.FIGURE3_COLUMNS, rows)
     assert sweeps.tables(root) == [root / "results" / "class_demo.md"]
     assert (root / "results" / "class_demo.md").read_text().splitlines()[2:] == [
-        "| (a) car | RL | 2 | 1.50 [1.00, 2.00] | 2.50 [2.00, 3.00] |"]
+        "| (a) car | RL | 0 | 2 | 1.50 | [1.00, 2.00] | 1.00 - 2.00 |", "| (a) car | RL | 1 | 2 | 2.50 | [2.00, 3.00] | 2.00 - 3.00 |"]
 
 
 def test_a_block_naming_a_missing_table_is_a_one_line_error_exit_2(tmp_path, monkeypatch, capsys):
@@ -89,3 +95,107 @@ def test_a_block_naming_a_missing_table_is_a_one_line_error_exit_2(tmp_path, mon
     err = capsys.readouterr().err
     assert e.value.code == 2 and len(err.strip().splitlines()) == 1 and "results/nothing.md" in err
     assert "old" in readme.read_text()                               # nothing was written
+
+
+# ----------------------------------------------------------------------------
+# Statistics over seeds: hand-computed small cases
+# ----------------------------------------------------------------------------
+def test_bootstrap_intervals_of_hand_computed_cases():
+    # [0, 1]: resampled means 0, 0.5, 1 with probabilities 1/4, 1/2, 1/4: the central 95 % is (0, 1)
+    assert sweeps.bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
+    assert sweeps.bootstrap_ci([2.0, 2.0, 2.0]) == (2.0, 2.0)                       # no spread, no interval
+    # [0, 0, 0, 1] (n = 4): P(mean = 0) = (3/4)^4 = 0.316 > 2.5 %, P(mean = 1) = (1/4)^4 = 0.004 < 2.5 %,
+    # P(mean >= 3/4) = 13/256 = 0.051 > 2.5 %: the interval is (0, 0.75)
+    assert sweeps.bootstrap_ci([0.0, 0.0, 0.0, 1.0]) == (0.0, 0.75)
+    # five 0s and five 1s: the mean is Binomial(10, 1/2) / 10, whose cumulative probabilities pass
+    # 2.5 % at 0.2 (0.055) and 97.5 % at 0.8 (0.989; at 0.7 only 0.945): the interval is (0.2, 0.8)
+    assert sweeps.bootstrap_ci([0.0] * 5 + [1.0] * 5) == (0.2, 0.8)
+    assert sweeps.bootstrap_diff_ci([3.0, 3.0], [1.0, 1.0]) == (2.0, 2.0)
+    lo, hi = sweeps.bootstrap_diff_ci([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
+    assert lo < 0 < hi and lo == pytest.approx(-hi, abs=0.34)                    # symmetric about 0
+    assert sweeps.bootstrap_ci([0.0, 1.0], np.median) == (0.0, 1.0)
+    assert sweeps.bootstrap_ci([5.0, 1.0, 3.0], seed=1) == sweeps.bootstrap_ci([5.0, 1.0, 3.0], seed=1)
+
+
+def test_probability_of_improvement_is_the_pair_count_and_mann_whitney_u():
+    # x = [1, 2, 3], y = [2, 2]: pairs (1,2) (1,2) (2,2) (2,2) (3,2) (3,2) score 0, 0, 1/2, 1/2, 1, 1
+    assert sweeps.probability_of_improvement([1, 2, 3], [2, 2]) == 0.5
+    assert sweeps.probability_of_improvement([5, 6], [1, 2, 3]) == 1.0
+    assert sweeps.probability_of_improvement([1, 2, 3], [5, 6]) == 0.0
+    rng = np.random.default_rng(0)
+    x, y = rng.integers(0, 5, 7).astype(float), rng.integers(0, 5, 9).astype(float)
+    ranks = np.argsort(np.argsort(np.concatenate([x, y]))) + 1.0                  # U from mid-ranks, by hand
+    both = np.concatenate([x, y])
+    mid = np.array([ranks[both == v].mean() for v in both])
+    u = mid[:len(x)].sum() - len(x) * (len(x) + 1) / 2
+    assert sweeps.probability_of_improvement(x, y) == pytest.approx(u / (len(x) * len(y)))
+    assert sweeps.probability_of_improvement_ci([5, 6], [1, 2, 3]) == (1.0, 1.0)
+    lo, hi = sweeps.probability_of_improvement_ci(x, y)
+    assert 0.0 <= lo <= sweeps.probability_of_improvement(x, y) <= hi <= 1.0
+
+
+def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
+    assert [sweeps.verdict(ci) for ci in ((0.1, 2.0), (-1.0, 1.0), (-2.0, -0.1))] == ["holds", "not settled", "fails"]
+    assert [sweeps.verdict(ci, 1.0) for ci in ((-0.5, 0.9), (-1.5, 0.5), (1.2, 3.0))] == ["holds", "not settled", "fails"]
+    rows = []                                      # panel (d): RL+IL walks at once, RL from iteration 3 on
+    for method, curve in (("RL+IL", [5, 20, 20]), ("RL", [0, 0, 20])):
+        for seed in range(4):
+            rows += [{"panel": "d", "train": "leg_none_wheel", "demos": "hexapod+car", "method": method, "seed": seed,
+                      "iteration": i, "distance_m": d + 0.1 * seed} for i, d in enumerate(curve)]
+    table = sweeps.summarize_claims(rows, iters=2, seeds=4)
+    assert "| (d) leg_none_wheel | RL+IL converges in fewer iterations | mean iterations to converge, " \
+           "RL − RL+IL (2.0 − 1.0) | 1.00 | [1.00, 1.00] | holds |" in table
+    faster = next(line for line in table.splitlines() if "RL+IL learns faster" in line)
+    assert "P(RL+IL > RL) = 1.00 [1.00, 1.00] | 10.00 |" in faster and faster.endswith("| holds |")
+    assert "| RL+IL lowers the variance of convergence |" in table and table.count("not settled") == 1
+
+
+# ----------------------------------------------------------------------------
+# Launchers: local processes, Ray, and a plan any scheduler runs, then --collect
+# ----------------------------------------------------------------------------
+def quiet(*args, **kw):
+    pass
+
+
+TINY_SWEEP = dict(iters=1, eval_steps=30, policy_steps=6, bc_steps=10)
+
+
+def without_seconds(path):
+    with open(path, newline="") as f:
+        return [{k: v for k, v in row.items() if k != "seconds"} for row in csv.DictReader(f)]
+
+
+@pytest.fixture(scope="module")
+def local_sweep(tmp_path_factory):
+    """Panel (b), RL+IL and RL, seed 0, with the local launcher: its figure3.csv."""
+    out = tmp_path_factory.mktemp("local")
+    assert sweeps.figure3(out, rlil.preset("tiny", **TINY_SWEEP), 1, 2, log=quiet, panels="b") == []
+    return out / "figure3.csv"
+
+
+def test_ray_launcher_gives_the_local_launchers_metrics(local_sweep, tmp_path, monkeypatch):
+    pytest.importorskip("ray")                       # .ci/run installs requirements-ray.txt
+    monkeypatch.setenv("RAY_worker_niceness", "0")   # Ray runs tasks at nice 15: on a busy machine they starve
+    out = tmp_path / "ray"
+    assert sweeps.figure3(out, rlil.preset("tiny", **TINY_SWEEP), 1, 2, log=quiet, panels="b", launcher="ray") == []
+    assert without_seconds(out / "figure3.csv") == without_seconds(local_sweep)
+    assert len(without_seconds(local_sweep)) == 4                   # 2 runs x iterations 0, 1
+
+
+def test_plan_commands_run_anywhere_and_collect_into_the_local_csv(local_sweep, tmp_path):
+    base = rlil.preset("tiny", **TINY_SWEEP)
+    lines = sweeps.plan_lines(sweeps.figure3_runs(tmp_path / "runs", base, 1, 2, "b"), base.iters)
+    assert len(lines) == 2 and all(line.startswith("mkdir -p ") for line in lines)
+    for line in lines:                                # what a SLURM array task or GNU parallel would run
+        subprocess.run(["bash", "-c", line], check=True, cwd="/")
+    assert sweeps.plan_lines(sweeps.figure3_runs(tmp_path / "runs", base, 1, 2, "b"), base.iters) == []  # all done
+    problems = sweeps.figure3(tmp_path / "out", base, 1, 2, log=quiet, panels="b", collect=tmp_path / "runs")
+    assert problems == [] and without_seconds(tmp_path / "out" / "figure3.csv") == without_seconds(local_sweep)
+    assert sweeps.keep_metrics(tmp_path / "runs", tmp_path / "kept") == ["car-car-seed0", "car-rl-seed0"]
+    assert sweeps.plan_lines(sweeps.figure3_runs(tmp_path / "kept", base, 1, 2, "b"), base.iters) == []
+    sweeps.figure3(tmp_path / "kept", base, 1, 2, log=quiet, panels="b", collect=tmp_path / "kept")
+    assert without_seconds(tmp_path / "kept" / "figure3.csv") == without_seconds(local_sweep)   # metrics suffice
+    shutil.rmtree(tmp_path / "runs" / "car-rl-seed0")                 # a missing run is named, not hidden
+    problems = sweeps.figure3(tmp_path / "out", base, 1, 2, log=quiet, panels="b", collect=tmp_path / "runs")
+    assert len(problems) == 1 and "(b) RL seed 0: 0 of 1 iterations" in problems[0]
+    assert "Missing or failed runs" in (tmp_path / "out" / "figure3.md").read_text()
