@@ -219,9 +219,10 @@ def figure3_rows(runs: list[dict]) -> list[dict]:
     for r in runs:
         try:
             saved = json.loads((r["dir"] / "metrics.json").read_text())
-            metrics, cpu = saved["iterations"], saved["config"]["versions"].get("cpu_capability")
+            metrics = saved["iterations"]
         except (OSError, ValueError, KeyError):
             continue
+        cpu = saved.get("config", {}).get("versions", {}).get("cpu_capability")    # None before it was recorded
         rows += [{"panel": r["panel"], "train": r["train"], "demos": r["demos"], "method": r["method"],
                   "seed": r["seed"], "iteration": m["iteration"], "distance_m": m["distance_m"],
                   "model_progress_m": m.get("model_progress_m"), "sim_progress_m": m.get("sim_progress_m"),
@@ -655,9 +656,9 @@ def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig,
 # README/docs blocks that show them
 # ----------------------------------------------------------------------------
 ROOT = Path(__file__).resolve().parent
-ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md, its per-iteration table
-    "figure3": "figure3_iterations",
-    "class_demo": "class_demo",
+ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md, its per-iteration table, methods
+    "figure3": ("figure3_iterations", ("RL+IL", "RL")),
+    "class_demo": ("class_demo", ("RL",)),                       # the class demo command has no demos
 }
 TEXT_COLUMNS = {"panel", "train", "demos", "method", "cpu_capability"}
 BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
@@ -692,8 +693,8 @@ def summarize_iterations(rows: list[dict]) -> str:
              "|---|---|---|---|---|---|---|"]
     order = {"RL+IL": 0, "RL": 1}
     for (panel, design, demos), methods in groups.items():
-        label = f"({panel}) {design}" + (f" ({demos.replace('+', ' + ')} demos)" if demos else "")
         for method in sorted(methods, key=lambda m: order.get(m, len(order))):
+            label = f"({panel}) {design}" + (f" ({demos.replace('+', ' + ')} demos)" if method == "RL+IL" else "")
             for i, d in sorted(methods[method].items()):
                 lines.append(f"| {label} | {method} | {i} | {len(d)} | {np.mean(d):.2f} | "
                              f"{interval(bootstrap_ci(d))} | {min(d):.2f} - {max(d):.2f} |")
@@ -720,12 +721,14 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     tables[results / "figure3.md"] = figure3_table(rows)
     tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
                                                              len({r["seed"] for r in rows}))
-    tables[results / "main_command.md"] = summarize_iterations([r for r in rows if r["panel"] == "d"])  # README
+    tables[results / "main_command.md"] = summarize_iterations(                   # the README's main command
+        [r for r in rows if r["panel"] == "d" and r["method"] == "RL+IL"])
     rows = read_rows_csv(results / "sample_efficiency.csv")
     tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
-    for name, md in ITERATION_TABLES.items():
+    for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
-            tables[results / f"{md}.md"] = summarize_iterations(read_rows_csv(results / f"{name}.csv"))
+            tables[results / f"{md}.md"] = summarize_iterations(
+                [r for r in read_rows_csv(results / f"{name}.csv") if r["method"] in methods])
     return tables
 
 

@@ -498,14 +498,15 @@ def test_figure3_reuses_finished_runs_and_writes_plot_and_csv(tmp_path):
     assert [dataclasses.replace(received(r), threads=1) for r in alone] == [received(r) for r in runs]
     assert sweeps.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet) == []
     lines = (tmp_path / "figure3.csv").read_text().splitlines()
-    assert lines[0] == "panel,train,demos,method,seed,iteration,distance_m,model_progress_m,sim_progress_m"
+    assert lines[0] == ("panel,train,demos,method,seed,iteration,distance_m,model_progress_m,sim_progress_m,"
+                        "seconds,cpu_capability")
     assert len(lines) == 1 + 16 * 2
-    assert "a,hexapod,hexapod,RL+IL,0,0,10.0,," in lines and "d,leg_none_wheel,hexapod+car,RL,1,1," in "\n".join(lines)
+    assert "a,hexapod,hexapod,RL+IL,0,0,10.0,,,," in lines and "d,leg_none_wheel,hexapod+car,RL,1,1," in "\n".join(lines)
     assert not any((r["dir"] / "train.log").exists() for r in runs)    # nothing was run again
     assert (tmp_path / "figure3.png").stat().st_size > 10_000
     table = (tmp_path / "figure3.md").read_text()
-    assert "| (a) hexapod (hexapod demos) | RL+IL | 2 of 2 | 0 |" in table   # RL+IL starts at 10 m, above 90 %
-    assert "| (a) hexapod (hexapod demos) | RL | 2 of 2 | not converged |" in table
+    assert "| (b) car (car demos) | RL+IL | 2 of 2 | 0, 0 |" in table   # RL+IL starts at 14 m, above 90 % of 15.5
+    assert "| (a) hexapod (hexapod demos) | RL | 2 of 2 | never, never |" in table
 
 
 def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
@@ -517,7 +518,7 @@ def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
     assert len(problems) == 1 and "(a) RL+IL seed 1" in problems[0] and "exit status 1" in problems[0]
     table = (tmp_path / "figure3.md").read_text()
     assert "| (a) hexapod (hexapod demos) | RL+IL | 1 of 2 |" in table and "(a) RL+IL seed 1" in table
-    assert "| 11.00 | 11.00 - 11.00 |" in table                      # seed 0's final alone
+    assert "| 11.00 [11.00, 11.00] | 11.00 - 11.00 |" in table       # seed 0's final alone
 
 
 # ----------------------------------------------------------------------------

@@ -25,7 +25,7 @@ def test_committed_tables_and_readme_blocks_are_the_regenerated_ones():
     """What `python sweeps.py --tables --check` checks, in-process: nothing differs."""
     assert sweeps.tables(sweeps.ROOT, check=True) == []
     readme = (sweeps.ROOT / "README.md").read_text()
-    assert sweeps.BEGIN.format("figure3") in readme                  # the check covers a README block
+    assert sweeps.BEGIN.format("figure3_claims") in readme           # the check covers a README block
 
 
 def copy_of_repo(tmp_path):
@@ -49,6 +49,7 @@ def test_a_changed_csv_changes_the_tables_and_the_readme_block(tmp_path, monkeyp
     sweeps.write_rows_csv(path, sweeps.FIGURE3_COLUMNS, rows)
     before = {p: p.read_text() for p in (root / "README.md", root / "results" / "figure3.md",
                                          root / "results" / "figure3_iterations.md")}
+    before_claims = (root / "results" / "figure3_claims.md").read_text()
     stale = sweeps.tables(root, check=True)
     assert set(stale) >= set(before)                                 # and the other tables made from it
     assert all(p.read_text() == text for p, text in before.items())     # --check writes nothing
@@ -60,9 +61,10 @@ def test_a_changed_csv_changes_the_tables_and_the_readme_block(tmp_path, monkeyp
     table = (root / "results" / "figure3.md").read_text()
     assert table != before[root / "results" / "figure3.md"] and "99.00" in table      # its final max
     assert "99.00]" in (root / "results" / "figure3_iterations.md").read_text()           # its max at iteration 5
-    readme = (root / "README.md").read_text()
-    begin, end = sweeps.BEGIN.format("figure3"), sweeps.END.format("figure3")
-    assert readme.split(begin + "\n")[1].split(end)[0] == table      # the block is the new table
+    readme, claims = (root / "README.md").read_text(), (root / "results" / "figure3_claims.md").read_text()
+    begin, end = sweeps.BEGIN.format("figure3_claims"), sweeps.END.format("figure3_claims")
+    assert readme.split(begin + "\n")[1].split(end)[0] == claims     # the block is the new claims table
+    assert claims != before_claims
     assert sweeps.tables(root, check=True) == []
     assert sweeps.main(["--tables", "--check"]) == 0
 
