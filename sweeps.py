@@ -501,6 +501,8 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
     axes[0].set_ylabel("distance in 200 steps (m)")
+    fig.suptitle(f"mean over seeds, its 95 % bootstrap interval (band) and min-max (dotted); {provenance(rows)}",
+                 fontsize=8)
     save_sweep_plot(fig, out / "figure3.png", problems)
 
 
