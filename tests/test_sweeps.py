@@ -60,7 +60,7 @@ def test_a_changed_csv_changes_the_tables_and_the_readme_block(tmp_path, monkeyp
     assert sweeps.main(["--tables"]) == 0
     table = (root / "results" / "figure3.md").read_text()
     assert table != before[root / "results" / "figure3.md"] and "99.00" in table      # its final max
-    assert "99.00]" in (root / "results" / "figure3_iterations.md").read_text()           # its max at iteration 5
+    assert " - 99.00 |" in (root / "results" / "figure3_iterations.md").read_text()        # its max at iteration 5
     readme, claims = (root / "README.md").read_text(), (root / "results" / "figure3_claims.md").read_text()
     begin, end = sweeps.BEGIN.format("figure3_claims"), sweeps.END.format("figure3_claims")
     assert readme.split(begin + "\n")[1].split(end)[0] == claims     # the block is the new claims table
@@ -159,7 +159,7 @@ def quiet(*args, **kw):
     pass
 
 
-TINY_SWEEP = dict(iters=1, eval_steps=30, policy_steps=6, bc_steps=10)
+TINY_SWEEP = dict(iters=1, eval_steps=30, policy_steps=6, bc_steps=10, model_steps=50, demo_episodes=4)
 
 
 def without_seconds(path):
@@ -188,8 +188,8 @@ def test_plan_commands_run_anywhere_and_collect_into_the_local_csv(local_sweep, 
     base = rlil.preset("tiny", **TINY_SWEEP)
     lines = sweeps.plan_lines(sweeps.figure3_runs(tmp_path / "runs", base, 1, 2, "b"), base.iters)
     assert len(lines) == 2 and all(line.startswith("mkdir -p ") for line in lines)
-    for line in lines:                                # what a SLURM array task or GNU parallel would run
-        subprocess.run(["bash", "-c", line], check=True, cwd="/")
+    jobs = [subprocess.Popen(["bash", "-c", line], cwd="/") for line in lines]   # as a SLURM array would
+    assert [job.wait() for job in jobs] == [0, 0]
     assert sweeps.plan_lines(sweeps.figure3_runs(tmp_path / "runs", base, 1, 2, "b"), base.iters) == []  # all done
     problems = sweeps.figure3(tmp_path / "out", base, 1, 2, log=quiet, panels="b", collect=tmp_path / "runs")
     assert problems == [] and without_seconds(tmp_path / "out" / "figure3.csv") == without_seconds(local_sweep)
