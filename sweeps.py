@@ -74,9 +74,6 @@ def figure3_runs(out: Path, base: rlil.Config, seeds: int, jobs: int, panels: st
     return runs
 
 
-LAUNCHERS = ("local", "ray")
-
-
 def run_command(run: dict) -> list[str]:
     """The train.py command of one run: its arguments and directory, --resume once it has a checkpoint."""
     cmd = [sys.executable, str(Path(train.__file__).resolve()), *run["args"], "--out", str(run["dir"])]
@@ -319,10 +316,10 @@ def iterations_to_converge(curve: dict, threshold: float, iters: int) -> int:
     return iters + 1 if at is None else at
 
 
-def per_run(rows: list[dict], panel: str, iters: int) -> dict:
+def per_run(curves: tuple, iters: int) -> dict:
     """method -> {"converge": [iterations to converge per finished run], "auc": [...], "final": [...]},
-    with summarize_figure3's convergence threshold of the panel."""
-    runs, _, _, threshold = panel_curves(rows, panel, iters)
+    from one panel's `panel_curves` (its runs and its convergence threshold)."""
+    runs, _, _, threshold = curves
     out = {}
     for method, curves in runs.items():
         done = [c for c in curves.values() if area_under_curve(c, iters) is not None]
@@ -364,7 +361,7 @@ def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
              "|---|---|---|---|---|---|"]
     std = lambda x, axis=-1: np.std(x, axis=axis)                      # noqa: E731
     for panel, (design, demos) in PANELS.items():
-        stats = per_run(rows, panel, iters)
+        stats = per_run(panel_curves(rows, panel, iters), iters)
         if set(stats) != {"RL", "RL+IL"} or not all(stats[m]["auc"] for m in stats):
             continue
         rl, rlil = stats["RL"], stats["RL+IL"]
@@ -425,8 +422,9 @@ def summarize_figure3(rows: list[dict], iters: int, seeds: int, problems: list[s
     for panel, (design, demos) in PANELS.items():
         if panel not in panels:
             continue
-        runs, gaps, _, _ = panel_curves(rows, panel, iters)
-        stats = per_run(rows, panel, iters)
+        curves = panel_curves(rows, panel, iters)
+        runs, gaps, _, _ = curves
+        stats = per_run(curves, iters)
         for method in ("RL+IL", "RL"):
             head = f"| ({panel}) {design} ({' + '.join(demos)} demos) | {method} |"
             st = stats.get(method)

@@ -40,6 +40,7 @@ import ppo_minimal as ppo_lib
 import sim2d
 from gnn import GNNConfig, ModularPolicy
 
+LAUNCHERS = ("local", "ray")      # how a sweep runs its runs (sweeps.launch_runs)
 OUTPUTS = ("metrics.json", "metrics.csv", "curve.png", "policy.pt", "checkpoint.pt", "rollout.gif")
 
 
@@ -397,7 +398,7 @@ def build_parser() -> sim2d.CliParser:
     p.add_argument("--seeds", type=int, default=3, help="with --figure3 or --sample-efficiency: seeds per condition (default 3)")
     p.add_argument("--jobs", type=int, default=2, help="with --figure3 or --sample-efficiency: runs in parallel processes (default 2)")
     p.add_argument("--panels", default="abcd", help="with --figure3: which panels, e.g. ad (default abcd)")
-    p.add_argument("--launcher", choices=sweeps_launchers(), default="local",
+    p.add_argument("--launcher", choices=LAUNCHERS, default="local",
                    help="with a sweep: local processes (--jobs at a time), or Ray tasks of one CPU each "
                         "(pip install -r requirements-ray.txt)")
     p.add_argument("--ray-address", metavar="ADDR", help="with --launcher ray: join this running Ray cluster "
@@ -457,10 +458,6 @@ def config_from_args(args, method: str | None = None, strict: bool = True):
     except ValueError as e:
         raise UsageError(str(e))
     return cfg
-
-
-def sweeps_launchers() -> tuple[str, ...]:
-    return ("local", "ray")                       # sweeps.LAUNCHERS, without importing sweeps here
 
 
 def sweep(args) -> int:
