@@ -101,6 +101,12 @@ class Config:
                                      # reward of Sec. III-J is judged on them (ME-TRPO); below ensemble
     trust_region: float = 0.0        # weight of a penalty on KL(previous iteration's policy || policy)
                                      # on windows of T_train (TRPO, PPO's KL penalty); 0 = the paper; 0-10
+    clone_data: bool = False         # the first model also fits the cloned policy's roll-outs, collected
+                                     # after line 1 as lines 28-29 collect (no effect without demos)
+    keep_better: bool = False        # after lines 28-29, keep the previous policy when the new one's noiseless
+                                     # roll-outs return less than the kept one's, minus improvement_margin
+    improvement_margin: float = 0.0  # with keep_better: return (about metres per episode) a new policy may
+                                     # lose and still be kept; 0-2
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -161,7 +167,7 @@ def design_codes(field_name: str, designs) -> tuple[str, ...]:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
-    "buffer_size": 2, "rounds": 0, "held_out_models": 0, "trust_region": 0.0}
+    "buffer_size": 2, "rounds": 0, "held_out_models": 0, "trust_region": 0.0, "improvement_margin": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -562,11 +568,13 @@ def model_bias(policy: ModularPolicy, model, design: str, run: sim2d.Episodes, c
 def sim_steps(cfg: Config, i: int) -> int:
     """Simulator steps Algorithm 1 has taken by the end of iteration i (for comparison with PPO):
     the demonstrations (counted once, at iteration 0, even when loaded from the cache), the
-    random roll-outs of line 2 and the clean and noisy policy roll-outs of lines 28-29.
-    Evaluation in the simulator (every row's distance, `model_bias`) is not counted."""
+    random roll-outs of line 2, the clean and noisy policy roll-outs of lines 28-29 (and of
+    the clone, with `clone_data`).  Evaluation in the simulator (every row's distance, `model_bias`) is not counted."""
     demos = len(cfg.demos) * cfg.demo_episodes * cfg.demo_steps
     random = len(cfg.train) * cfg.random_episodes * cfg.episode_steps
-    return demos + random + i * len(cfg.train) * 2 * cfg.policy_episodes * cfg.episode_steps
+    policy = len(cfg.train) * 2 * cfg.policy_episodes * cfg.episode_steps          # one collection
+    clone = policy if uses_clone_data(cfg) else 0                                    # not in the paper
+    return demos + random + clone + i * policy
 
 
 def eval_seed(cfg: Config) -> int:
@@ -602,6 +610,7 @@ class Run:
     rng: np.random.Generator
     iteration: int = 0               # last finished iteration (0: lines 1-2 and their evaluation)
     metrics: list = field(default_factory=list)   # one row per finished iteration, 0 included
+    kept_return: float | None = None  # `keep_better`: the kept policy's return on its noiseless roll-outs
 
     def rng_state(self) -> dict:
         return {"numpy": self.rng.bit_generator.state, "torch": torch.get_rng_state()}
@@ -671,6 +680,9 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         data = {d: collect_random_rollouts(d, cfg, rng) for d in designs}                         # line 2
         log(f"line 2   random spline data: {sum(len(d.actions) for d in data.values())} episodes")
         run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
+        if uses_clone_data(cfg):                                                            # not in the paper
+            run.kept_return = add_clone_rollouts(policy, data, cfg, rng)
+            log(f"clone    roll-outs of the cloned policy added to T_train: return {run.kept_return:.2f}")
         row = evaluate_iteration(policy, model, designs, cfg, 0)
         record(run, {**row, "il_weight": run.il_weight, "sim_steps": sim_steps(cfg, 0),
                      "seconds": time.perf_counter() - t0}, log)
@@ -681,13 +693,17 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
     policy, model, data, rng = run.policy, run.model, run.data, run.rng
     for i in range(run.iteration + 1, cfg.iters + 1):                                              # line 3
         t0, il_weight = time.perf_counter(), run.il_weight
+        previous = copy.deepcopy(policy.state_dict()) if cfg.keep_better else None                # not in the paper
         # -- lines 4-5: model learning phase --
         fit_loss = train_model(model, data, cfg, rng, first=(i == 1))                              # line 5
         # -- lines 6-26: policy optimisation phase --
         phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)               # lines 7-26
         # -- lines 27-29: data collection --
+        new_data = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in designs}               # line 28
         for design in designs:
-            data[design] = data[design] + collect_policy_rollouts(policy, design, cfg, rng)        # lines 28-29
+            data[design] = data[design] + new_data[design]                                         # line 29
+        if cfg.keep_better:                                                                        # not in the paper
+            phase.update(improvement_check(policy, previous, new_data, run, cfg))
         run.il_weight = decay_il_weight(il_weight, cfg)                                            # line 30
         run.iteration = i
         # -- evaluation in the simulator (Sec. IV), not part of Algorithm 1 --
@@ -699,7 +715,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
             f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "
             f"first {cfg.horizon} steps: model {row['model_progress_m']:.2f} m, "
             f"simulator {row['sim_progress_m']:.2f} m, model replaying the simulator's actions "
-            f"off by {row['model_path_error_m']:.2f} m")
+            f"off by {row['model_path_error_m']:.2f} m"
+            + ("; kept the previous policy" if phase.get("kept_new") is False else ""))
         if on_iteration:
             on_iteration(run)
     return run
@@ -709,6 +726,51 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 # Not in the paper: switches against model error, all off by default
 # (docs/ablations.md has what each measured)
 # ----------------------------------------------------------------------------
+def uses_clone_data(cfg: Config) -> bool:
+    """`clone_data` acts only where line 1 made a clone to run."""
+    return cfg.clone_data and bool(cfg.demos) and cfg.bc_steps > 0
+
+
+def add_clone_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cfg: Config,
+                       rng: np.random.Generator) -> float:
+    """The first model sees the clone: after lines 1-2, run the pre-trained policy on d_train as
+    lines 28-29 do (noiseless, then with noise) and add the roll-outs to T_train, so the model of
+    iteration 1 is fitted where the cloned gait goes, not only on random flails (the data
+    aggregation of DAgger, Ross et al. 2011, and of MBRL with on-policy data, Nagabandi et al.
+    2018).  Costs one data collection.  Returns the clone's return for `improvement_check`."""
+    new = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in data}
+    for design, traj in new.items():
+        data[design] = data[design] + traj
+    return policy_return(new, cfg)
+
+
+def policy_return(new_data: dict[str, Trajectories], cfg: Config) -> float:
+    """The policy's real return: the summed reward of its noiseless episodes (the first
+    `policy_episodes` of a `collect_policy_rollouts` result), mean over episodes, summed over designs."""
+    total = 0.0
+    for design, traj in new_data.items():
+        s, a = traj.states[:cfg.policy_episodes], traj.actions[:cfg.policy_episodes]     # (n, T + 1, S), (n, T, A)
+        total += float(sim2d.reward(s[:, :-1], a, s[:, 1:], sim2d.design_graph(design)).sum(1).mean())
+    return total
+
+
+def improvement_check(policy: ModularPolicy, previous: dict, new_data: dict[str, Trajectories],
+                      run: Run, cfg: Config) -> dict:
+    """Keep the new policy only if its real return (`policy_return`, on line 28's noiseless
+    roll-outs, which the algorithm collects anyway) is at least the kept policy's minus
+    `improvement_margin`; otherwise load the previous policy back.  The new data stay in T_train,
+    so the next model learns where it was wrong.  The acceptance test of TRPO's line search
+    (Schulman et al. 2015) and ME-TRPO's policy validation (Kurutach et al. 2018), measured in
+    the simulator.  Returns the row's figures: the new policy's return and whether it was kept."""
+    value = policy_return(new_data, cfg)
+    keep = run.kept_return is None or value >= run.kept_return - cfg.improvement_margin
+    if keep:
+        run.kept_return = value
+    else:
+        policy.load_state_dict(previous)
+    return {"policy_return": value, "kept_new": keep}
+
+
 def make_model(cfg: Config):
     """f~_phi: one ModularModel (the paper), or an `Ensemble` of `cfg.ensemble` of them."""
     return ModularModel(cfg.gnn) if cfg.ensemble == 1 else Ensemble(cfg)

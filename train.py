@@ -174,7 +174,7 @@ def save_checkpoint(out: Path, run) -> None:
     atomic_write(out / "checkpoint.pt", lambda p: torch.save({
         "config": cfg, "policy": run.policy.state_dict(), "model": run.model.state_dict(),
         "data": {d: {"states": t.states, "actions": t.actions} for d, t in run.data.items()},
-        "il_weight": run.il_weight, "iteration": run.iteration,
+        "il_weight": run.il_weight, "iteration": run.iteration, "kept_return": run.kept_return,
         "metrics": run.metrics, "rng": run.rng_state()}, p))
 
 
@@ -202,7 +202,7 @@ def restore_run(ckpt: dict, cfg):
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
     return rlil.Run(cfg, policy, model, data, ckpt["il_weight"], rlil.Run.rng_from_state(ckpt["rng"]),
-                    ckpt["iteration"], ckpt["metrics"])
+                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"))
 
 
 def save_rollouts(out: Path, run) -> None:
