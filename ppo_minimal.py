@@ -18,6 +18,14 @@ the same 8 perturbed starts), so numbers compare one to one.
     ppo_update         PPO line 6: K epochs of minibatch Adam steps on ppo_loss
     ppo                the loop, evaluating every `eval_every` simulator steps
 
+With --demos, PPO+IL after DAPG (Rajeswaran et al. 2018, "Learning Complex Dexterous
+Manipulation with Deep Reinforcement Learning and Demonstrations", Sec. 4), built from
+Algorithm 1's own pieces (modular_rlil_minimal: load_demos, pretrain_bc, il_loss, rlil_loss):
+
+    behavioural_cloning  DAPG's pre-training = Algorithm 1 line 1, before iteration 0's evaluation
+    ppo_il_loss          eqn. 9 + lambda (L_IL + entropy penalty), Algorithm 1 line 19's form
+    il_weight_at         lambda = il_weight il_decay^(i-1) in PPO iteration i (line 30, per iteration)
+
 The policy's memory: `Memoryless` runs gnn.ModularPolicy with its GRU memory
 reset to h = 0 before every step, in training and in evaluation, so every
 sample's log-probability is one batched forward pass.  Handling the memory as
@@ -28,6 +36,7 @@ minibatch) cost 20-40x more per minibatch on this CPU (`python bench.py
 CPU, one thread (the command line is train.py):
     python train.py --train hexapod --method ppo                  # 2 M simulator steps (docs/ppo.md)
     python train.py --train car --method ppo --preset tiny        # the car learns to drive
+    python train.py --train leg_none_wheel --method ppo --demos hexapod car   # PPO+IL
     python bench.py --ppo        # one iteration's collection and update, timed (or: ppo_minimal.py --bench)
 """
 from __future__ import annotations
@@ -41,11 +50,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+import demos as demo_lib
 import sim2d
 from gnn import (GNNConfig, ModularPolicy, ModularValue, PolicyOnDesign, gaussian_entropy, gaussian_log_prob,
                  sample_action)
-from modular_rlil_minimal import (check_ranges, eval_seed, evaluate_policy, from_preset, new_seed, record,
-                                  seed_everything)
+from modular_rlil_minimal import (Config, check_ranges, design_codes, eval_seed, evaluate_policy, from_preset,
+                                  il_loss, load_demos, new_seed, pretrain_bc, record, rlil_loss, seed_everything)
 
 
 # ----------------------------------------------------------------------------
@@ -78,6 +88,23 @@ class PPOConfig:
     init_std: float = 0.6            # the policy's std at the start (its log-std heads' bias; gnn's
                                      # initialisation gives 0.29); 0.3-1 (docs/ppo.md, Tuning)
     eval_every: int = 50_000         # simulator steps between evaluations (rounded to whole iterations)
+    # Demonstrations (PPO+IL, after DAPG, Rajeswaran et al. 2018): Algorithm 1's T_demo, line 1 and eqn. (IL_loss)
+    demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain PPO (no pre-training, lambda = 0)
+    demo_episodes: int = 50          # demonstration episodes per demo design (paper: 50)
+    demo_steps: int = 100            # control steps per demonstration episode (paper: 100)
+    demo_noise: float = 0.15         # std of smooth noise on the demonstrators' executed, not recorded,
+                                     # actions, so T_demo shows recoveries (DART); 0 = the paper; 0-0.3
+    bc_steps: int = 1000             # Adam steps of behavioural cloning before PPO (Algorithm 1's line 1, at
+                                     # its policy_lr 1e-3); 0 skips it; 300-3000
+    il_weight: float = 1.0           # lambda at PPO iteration 1 (L = L_PPO + lambda (L_IL + entropy_weight
+                                     # S_demo)); 0.1-10
+    il_decay: float = 0.99           # lambda <- il_decay * lambda after every PPO iteration; 0.99 halves it
+                                     # every 69 iterations, 11 % of the default run's 625 (tiny: 0.7, every
+                                     # 2 of 20); 0-1
+    il_batch: int = 32               # demo windows per design per minibatch step
+    il_window: int = 8               # control steps per demo window (consecutive pairs: the memoryless policy
+                                     # sees each alone); at most demo_steps
+    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J); 0-0.1
     # Evaluation (Sec. IV of Whitman & Choset): distance in 200 control steps, as for Algorithm 1
     eval_episodes: int = 8           # perturbed starts per evaluation
     eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
@@ -87,7 +114,8 @@ class PPOConfig:
 PRESETS = {   # "tiny": the tests' budget, a class demo in which the car learns to drive
     "default": {},
     "tiny": dict(env_steps=16_000, robots=8, episode_steps=100, minibatches=4, eval_every=8_000,
-                 eval_episodes=4, eval_steps=100, lr=1e-3, gnn=GNNConfig(hidden=32)),
+                 eval_episodes=4, eval_steps=100, lr=1e-3, demo_episodes=8, demo_steps=40, bc_steps=100,
+                 il_decay=0.7, il_batch=8, il_window=4, gnn=GNNConfig(hidden=32)),
 }
 
 
@@ -96,17 +124,23 @@ def preset(name: str = "default", **overrides) -> PPOConfig:
     return from_preset(PPOConfig, PRESETS, name, **overrides)
 
 
-AT_LEAST = {"seed": 0, "ent_coef": 0.0, "vf_coef": 0.0, "rounds": 0}   # the rest must be positive
+AT_LEAST = {"seed": 0, "ent_coef": 0.0, "vf_coef": 0.0, "rounds": 0, "bc_steps": 0, "demo_noise": 0.0,
+            "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0}   # the rest must be positive
 
 
 def validate_config(cfg: PPOConfig) -> PPOConfig:
-    """`cfg` with its design as a six-letter code, or a one-line ValueError naming the bad field."""
+    """`cfg` with its designs as six-letter codes, or a one-line ValueError naming the bad field."""
     if len(cfg.train) != 1:
         raise ValueError(f"train: PPO trains one design, got {len(cfg.train)}")
-    cfg = dataclasses.replace(cfg, train=(sim2d.parse_design(cfg.train[0]),))
+    cfg = dataclasses.replace(cfg, train=(sim2d.parse_design(cfg.train[0]),), demos=design_codes("demos", cfg.demos))
+    for design in cfg.demos:
+        demo_lib.check_demonstrable(sim2d.design_graph(design))
     check_ranges(cfg, AT_LEAST)
-    if cfg.gamma > 1 or cfg.gae_lambda > 1:
-        raise ValueError(f"gamma and gae_lambda must be at most 1, got {cfg.gamma} and {cfg.gae_lambda}")
+    if cfg.gamma > 1 or cfg.gae_lambda > 1 or cfg.il_decay > 1:
+        raise ValueError(f"gamma, gae_lambda and il_decay must be at most 1, got {cfg.gamma}, {cfg.gae_lambda} "
+                         f"and {cfg.il_decay}")
+    if cfg.il_window > cfg.demo_steps:
+        raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
     if cfg.minibatches > cfg.robots * cfg.episode_steps:
         raise ValueError(f"minibatches ({cfg.minibatches}) must not exceed robots x episode_steps")
     return cfg
@@ -142,6 +176,15 @@ class Memoryless(torch.nn.Module):
     def act(self, obs: dict, graph, hidden, deterministic: bool = False):
         mean, log_std = self.distribution(obs, graph)
         return sample_action(mean, log_std, deterministic), hidden                   # the memory stays 0
+
+    def sequence_log_prob(self, obs_seq: dict, actions_seq, graph):
+        """gnn.ModularPolicy.sequence_log_prob without the memory, so modular_rlil_minimal.il_loss
+        imitates the policy as PPO runs it: (log pi(a_t | o_t), entropy), each (n, T), from
+        obs_seq values (n, T, ...) and actions_seq (n, T, A)."""
+        n, T = actions_seq.shape[:2]
+        mean, log_std = self.distribution({k: v.flatten(0, 1) for k, v in obs_seq.items()}, graph)   # (n T, A)
+        log_prob = gaussian_log_prob(mean, log_std, actions_seq.flatten(0, 1))
+        return log_prob.view(n, T), gaussian_entropy(log_std).view(n, T)
 
     def wire(self, graph) -> "MemorylessOnDesign":
         return MemorylessOnDesign(self.policy.wire(graph))
@@ -296,10 +339,32 @@ def ppo_loss(policy: Memoryless, value: ModularValue, mb: dict, graph, cfg: PPOC
     return loss, stats
 
 
+def ppo_il_loss(policy: Memoryless, value: ModularValue, mb: dict, graph, cfg: PPOConfig, demo_data: dict,
+                il_weight: float, rng: np.random.Generator):
+    """PPO+IL, after DAPG (Rajeswaran et al. 2018, Sec. 4: the policy gradient augmented with a
+    behavioural-cloning term on the demonstrations, its weight decaying), in the form of
+    Algorithm 1 line 19, eqn. (RLIL_loss), with PPO's loss as L_RL:
+
+        L = (-L^CLIP + c1 L^VF - c2 S) + lambda (L_IL + entropy_weight S_demo)
+
+    L_IL and S_demo are modular_rlil_minimal.il_loss on a fresh batch of demo windows (DAPG also
+    scales lambda by the largest advantage; Algorithm 1, and this, do not).  With lambda = 0 (or
+    no demos) this is `ppo_loss`, and no random number is drawn.
+    """
+    loss, stats = ppo_loss(policy, value, mb, graph, cfg)
+    if il_weight > 0 and demo_data:
+        loss_il, entropy = il_loss(policy, demo_data, cfg, rng)
+        loss = rlil_loss(loss, loss_il + cfg.entropy_weight * entropy, il_weight)
+        stats["il_loss"] = loss_il.item()
+    return loss, stats
+
+
 def ppo_update(policy: Memoryless, value: ModularValue, opt, batch: Batch, advantages, returns,
-               cfg: PPOConfig, rng: np.random.Generator) -> dict:
-    """PPO line 6: optimise eqn. 9 for K epochs of minibatches of the valid samples, given `gae`'s
-    advantages and returns (N, T).  Returns the last epoch's metrics, averaged over its minibatches."""
+               cfg: PPOConfig, rng: np.random.Generator, demo_data: dict | None = None,
+               il_weight: float = 0.0) -> dict:
+    """PPO line 6: optimise eqn. 9 (with demos: `ppo_il_loss`, weight `il_weight`) for K epochs of
+    minibatches of the valid samples, given `gae`'s advantages and returns (N, T).  Returns the last
+    epoch's metrics, averaged over its minibatches."""
     graph = sim2d.design_graph(cfg.train[0])
     keep = batch.valid.flatten()                                                          # (N T,)
     data = {"obs": {k: v.flatten(0, 1)[keep] for k, v in batch.obs.items()},
@@ -311,7 +376,7 @@ def ppo_update(policy: Memoryless, value: ModularValue, opt, batch: Batch, advan
         for idx in np.array_split(rng.permutation(int(keep.sum())), min(cfg.minibatches, int(keep.sum()))):
             i = torch.from_numpy(idx)
             mb = {k: ({o: x[i] for o, x in v.items()} if k == "obs" else v[i]) for k, v in data.items()}
-            loss, s = ppo_loss(policy, value, mb, graph, cfg)
+            loss, s = ppo_il_loss(policy, value, mb, graph, cfg, demo_data, il_weight, rng)
             opt.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(params, cfg.max_grad_norm)
@@ -333,7 +398,8 @@ class PPORun:
     opt: torch.optim.Optimizer
     rng: np.random.Generator
     iteration: int = 0               # last finished PPO iteration
-    sim_steps: int = 0               # simulator steps of training so far (evaluation excluded)
+    sim_steps: int = 0               # simulator steps of training so far (evaluation excluded; with
+                                     # demos, theirs included from the start)
     return_scale: ReturnScale = field(default_factory=ReturnScale)
     metrics: list = field(default_factory=list)   # one row per evaluation, iteration 0 included
 
@@ -369,16 +435,39 @@ def new_run(cfg: PPOConfig) -> PPORun:
     return PPORun(cfg, policy, value, opt, rng)
 
 
-def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None) -> PPORun:
+def behavioural_cloning(policy: ModularPolicy, demo_data: dict, cfg: PPOConfig, rng: np.random.Generator) -> float:
+    """DAPG's pre-training (Rajeswaran et al. 2018, Sec. 4) is Algorithm 1's line 1:
+    modular_rlil_minimal.pretrain_bc, `bc_steps` Adam steps on L_IL at Algorithm 1's policy_lr,
+    here on the memoryless policy PPO runs.  Returns the IL loss of the last 10 % of the steps."""
+    bc_cfg = Config(bc_steps=cfg.bc_steps, il_batch=cfg.il_batch, il_window=cfg.il_window)
+    return pretrain_bc(Memoryless(policy), demo_data, bc_cfg, rng)
+
+
+def il_weight_at(cfg: PPOConfig, i: int) -> float:
+    """lambda in PPO iteration i (1, 2, ...): il_weight il_decay^(i-1), DAPG's lambda_0 lambda_1^k
+    (Rajeswaran et al. 2018, Sec. 4), i.e. Algorithm 1 line 30 applied once per PPO iteration."""
+    return cfg.il_weight * cfg.il_decay ** (i - 1)
+
+
+def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None,
+        demo_data: dict | None = None) -> PPORun:
     """PPO (Schulman et al. 2017, Algorithm 1) on the modular policy, from scratch or continuing `run`.
 
+    With `cfg.demos`, PPO+IL after DAPG (Rajeswaran et al. 2018): behavioural cloning first, then
+    `ppo_il_loss`.  demo_data: T_demo from modular_rlil_minimal.load_demos (loaded here if None).
     After every evaluation (iteration 0 included) `on_evaluation(run)` is called
     (train.py saves checkpoints and plots there).  Returns the PPORun.
     """
     torch.set_num_threads(cfg.threads)
+    demo_data = load_demos(cfg) if demo_data is None else demo_data                    # {} without demos
     t0 = time.perf_counter()
     if run is None:
         run = new_run(cfg)
+        if demo_data:            # the demonstrations' simulator steps count, as Algorithm 1's sim_steps counts them
+            run.sim_steps = len(cfg.demos) * cfg.demo_episodes * cfg.demo_steps
+        if demo_data and cfg.bc_steps:                                                  # DAPG's pre-training
+            log(f"behavioural cloning on {', '.join(demo_data)}: IL loss "
+                f"{behavioural_cloning(run.policy, demo_data, cfg, run.rng):.3f}")
         record(run, evaluation_row(run, time.perf_counter() - t0), log)
         log(f"iteration 0: {run.metrics[-1]['distance_m']:.2f} m in {cfg.eval_steps} steps")
         if on_evaluation:
@@ -395,19 +484,24 @@ def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None
         run.return_scale.update(batch.rewards, batch.valid, cfg.gamma)
         advantages, returns = gae(run.return_scale(batch.rewards), batch.values, batch.last_value,
                                   batch.terminal, cfg.gamma, cfg.gae_lambda)            # PPO line 4
-        stats = ppo_update(policy, run.value, run.opt, batch, advantages, returns, cfg, run.rng)   # PPO line 6
+        il_weight = il_weight_at(cfg, i) if demo_data else 0.0                          # DAPG's decaying lambda
+        stats = ppo_update(policy, run.value, run.opt, batch, advantages, returns, cfg, run.rng,
+                           demo_data, il_weight)                                        # PPO line 6
         run.iteration, run.sim_steps = i, run.sim_steps + cfg.robots * cfg.episode_steps  # PPO line 7: theta_old <- theta
         train_distance.append(batch.distance_m.mean())
         if i % per_eval == 0 or i == n_iters:
             row = evaluation_row(run, 0.0)
             row.update({"train_distance_m": float(np.mean(train_distance)), **stats,
                         "lr": run.opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
+            if demo_data:
+                row["il_weight"] = il_weight
             record(run, row, log)
             log(f"iteration {i}/{n_iters}  {run.sim_steps} steps: {row['distance_m']:.2f} m "
                 f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "
                 f"training episodes {row['train_distance_m']:.2f} m; value loss {stats['value_loss']:.4f}, "
                 f"entropy {stats['entropy']:.2f}, approx KL {stats['approx_kl']:.4f}, "
-                f"clipped {stats['clip_fraction']:.2f}")
+                f"clipped {stats['clip_fraction']:.2f}"
+                + (f"; lambda {il_weight:.3g}, IL loss {stats['il_loss']:.3f}" if "il_loss" in stats else ""))
             train_distance, t0 = [], time.perf_counter()
             if on_evaluation:
                 on_evaluation(run)

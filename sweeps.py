@@ -652,6 +652,86 @@ def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig,
 
 
 # ----------------------------------------------------------------------------
+# Issue #23's screen: switches against collapse between iterations, panels (a)
+# and (d), both methods, 5 seeds, each against the default on the same seeds
+# ----------------------------------------------------------------------------
+SCREEN = {   # variant: (its train.py flags, the variant whose RL runs are its own: None = its own runs)
+    "default": ((), None),
+    "clone_data": (("--clone-data", "on"), "default"),             # acts only with demos: RL is the default
+    "keep_better": (("--keep-better", "on"), None),
+    "clone_data+keep_better": (("--clone-data", "on", "--keep-better", "on"), "keep_better"),
+    "contact_features": (("--gnn-contact-features", "on"), None),
+}
+SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost between consecutive iterations
+
+
+def screen_dir(root: Path, variant: str) -> Path:
+    """Where a variant's committed metrics.json live: the default's are the 10-seed Figure 3's."""
+    return root / "results" / ("figure3_runs" if variant == "default" else f"stability_runs/{variant}")
+
+
+def screen_rows(root: Path) -> list[dict]:
+    """FIGURE3_COLUMNS rows, with the variant, of every finished run of the screen."""
+    rows = []
+    for variant, (_, rl_from) in SCREEN.items():
+        runs = figure3_runs(screen_dir(root, variant), rlil.Config(), SCREEN_SEEDS, 2, SCREEN_PANELS)
+        rows += [{"variant": variant, **row} for row in figure3_rows(
+            [r for r in runs if not (rl_from and r["method"] == "RL")])]
+    return rows
+
+
+def largest_fall(curve: dict, iters: int) -> float:
+    """A run's largest loss of distance between consecutive iterations from iteration 1 on (0 if none)."""
+    return max([0.0] + [curve[i] - curve[i + 1] for i in range(1, iters) if i in curve and i + 1 in curve])
+
+
+def summarize_screen(rows: list[dict]) -> str:
+    """Markdown, one line per variant, panel and method: mean distance per iteration, the final
+    mean with its 95 % CI, the seeds that fall by more than FALL_M m between consecutive
+    iterations from iteration 1 on (and the largest fall), exploitation (the largest mean over
+    seeds of |model - simulator progress| over the first T steps, iterations >= 1), the area
+    under the curve and, on the RL+IL line, RL+IL - RL in it with its CI, and the mean time."""
+    iters = max(r["iteration"] for r in rows)
+    lines = ["| variant | flags | panel | method | seeds | mean distance, iterations 0 → "
+             f"{iters} (m) | final [95 % CI] (m) | seeds falling > {FALL_M:.0f} m (largest fall, m) "
+             "| exploitation (m) | area under the curve (m) | RL+IL − RL in area [95 % CI] (m) | time per run (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for variant, (flags, rl_from) in SCREEN.items():
+        code = f"`{' '.join(flags)}`" if flags else ""
+        for panel in SCREEN_PANELS:
+            own = [r for r in rows if r["variant"] == variant and r["panel"] == panel]
+            rl = [r for r in rows if r["variant"] == (rl_from or variant) and r["panel"] == panel
+                  and r["method"] == "RL"]
+            sub = [r for r in own if r["method"] == "RL+IL"] + rl
+            if not sub:
+                continue
+            runs, gaps, mean, _ = panel_curves(sub, panel, iters)
+            stats = per_run((runs, gaps, mean, float("inf")), iters)
+            for method in ("RL+IL", "RL"):
+                if method not in runs:
+                    continue
+                curves, s = runs[method], stats[method]
+                falls = [largest_fall(c, iters) for c in curves.values()]
+                exploit = max([np.mean(g) for i, g in gaps.get(method, {}).items() if i >= 1], default=float("nan"))
+                seconds = np.mean([sum(r["seconds"] or 0 for r in sub if r["method"] == method and r["seed"] == seed)
+                                   for seed in curves])
+                diff = ""
+                if method == "RL+IL" and stats.get("RL", {}).get("auc") and s["auc"]:
+                    diff = (f"{np.mean(s['auc']) - np.mean(stats['RL']['auc']):.2f} "
+                            f"{interval(bootstrap_diff_ci(s['auc'], stats['RL']['auc']))}")
+                shared = f" (the {rl_from} runs)" if method == "RL" and rl_from else ""
+                final = (f"{np.mean(s['final']):.2f} {interval(bootstrap_ci(s['final']))}" if s["final"] else "")
+                lines.append(
+                    f"| {variant}{shared} | {code} "
+                    f"| ({panel}) {PANELS[panel][0]} | {method} | {len(curves)} "
+                    f"| {', '.join(f'{mean[method][i]:.1f}' for i in sorted(mean[method]))} | {final} "
+                    f"| {sum(f > FALL_M for f in falls)} ({max(falls):.2f}) | {exploit:.2f} "
+                    f"| {np.mean(s['auc']):.2f} | {diff} | {seconds:.0f} |" if s["auc"] else
+                    f"| {variant}{shared} | | ({panel}) | {method} | {len(curves)} | unfinished | | | | | | |")
+    return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------
 # Results tables: every results/*.md table from the committed CSVs, and the
 # README/docs blocks that show them
 # ----------------------------------------------------------------------------
@@ -660,7 +740,7 @@ ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md
     "figure3": ("figure3_iterations", ("RL+IL", "RL")),
     "class_demo": ("class_demo", ("RL",)),                       # the class demo command has no demos
 }
-TEXT_COLUMNS = {"panel", "train", "demos", "method", "cpu_capability"}
+TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability"}
 BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
 
 
@@ -701,6 +781,19 @@ def summarize_iterations(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def seed_curves(rows: list[dict], seeds: int) -> str:
+    """Markdown: one line per seed below `seeds`, its distance at every iteration (one panel and method's rows)."""
+    curves = {}
+    for r in rows:
+        if r["seed"] < seeds:
+            curves.setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
+    iters = sorted({i for c in curves.values() for i in c})
+    lines = ["| seed | " + " | ".join(f"it. {i} (m)" for i in iters) + " |", "|---" * (len(iters) + 1) + "|"]
+    lines += [f"| {s} | " + " | ".join(f"{c[i]:.2f}" if i in c else "" for i in iters) + " |"
+              for s, c in sorted(curves.items())]
+    return "\n".join(lines) + "\n"
+
+
 def figure3_table(rows: list[dict]) -> str:
     """summarize_figure3 of a figure3.csv: iters = its largest iteration, seeds = its distinct
     seeds, the panels it has.  Missing or failed runs are not in a CSV, so no note names them."""
@@ -721,10 +814,13 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     tables[results / "figure3.md"] = figure3_table(rows)
     tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
                                                              len({r["seed"] for r in rows}))
-    tables[results / "main_command.md"] = summarize_iterations(                   # the README's main command
-        [r for r in rows if r["panel"] == "d" and r["method"] == "RL+IL"])
+    main = [r for r in rows if r["panel"] == "d" and r["method"] == "RL+IL"]         # the README's main command
+    tables[results / "main_command.md"] = summarize_iterations(main)
+    tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
     rows = read_rows_csv(results / "sample_efficiency.csv")
     tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
+    if (results / "stability_screen.csv").exists():
+        tables[results / "stability_screen.md"] = summarize_screen(read_rows_csv(results / "stability_screen.csv"))
     for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
             tables[results / f"{md}.md"] = summarize_iterations(
@@ -805,7 +901,15 @@ def main(argv=None) -> int:
     parser.add_argument("--keep-metrics", nargs=2, metavar=("SWEEP_DIR", "DEST"),
                         help="copy the metrics.json of every finished Algorithm 1 run in SWEEP_DIR to "
                              "DEST/<run name>/ (what is committed of a sweep)")
+    parser.add_argument("--screen", action="store_true",
+                        help="write results/stability_screen.csv from the committed runs of issue #23's screen "
+                             "(results/stability_runs/<variant>/, the default's in results/figure3_runs/)")
     args = parser.parse_args(argv)
+    if args.screen:
+        rows = screen_rows(ROOT)
+        write_rows_csv(ROOT / "results" / "stability_screen.csv", ["variant"] + FIGURE3_COLUMNS, rows)
+        print(f"wrote results/stability_screen.csv: {len({(r['variant'], r['panel'], r['method'], r['seed']) for r in rows})} runs")
+        return 0
     if args.keep_metrics:
         src, dest = map(Path, args.keep_metrics)
         if not src.is_dir():
@@ -813,7 +917,7 @@ def main(argv=None) -> int:
         print(f"kept {len(keep_metrics(src, dest))} finished runs' metrics.json in {dest}")
         return 0
     if not args.tables:
-        parser.error("say --tables or --keep-metrics (the sweeps themselves run with train.py --figure3 "
+        parser.error("say --tables, --screen or --keep-metrics (the sweeps themselves run with train.py --figure3 "
                      "or --sample-efficiency)")
     try:
         stale = tables(ROOT, check=args.check)

@@ -10,6 +10,8 @@ CPU, minutes (README, Quick start); Ctrl-C keeps what finished and prints the co
     python train.py --train car --preset tiny                      # class demo (README, Quick start)
     python train.py --train hexapod --method ppo                   # PPO, 2 M simulator steps
     python train.py --eval runs/leg_none_wheel-hexapod_car-seed0 --design hexapod --gif h.gif
+    python train.py --transfer runs/leg_none_wheel-hexapod_car-seed0 runs/car-rl-seed0   # transfer.py
+    python train.py --compare runs/car-rl-seed0 runs/car-hexapod-seed0 --gif rl_vs_rlil.gif
     python train.py --sample-efficiency                            # RL, RL+IL and PPO per simulator step
 
 A run directory holds metrics.json, metrics.csv, curve.png, policy.pt (config
@@ -57,11 +59,12 @@ def is_ppo(cfg) -> bool:
 
 
 def run_name(cfg) -> str:
+    """<train>-<demos or rl>-seed<S>; PPO: <train>-ppo-seed<S>, with demos <train>-ppo_<demos>-seed<S>."""
     train = "+".join(sim2d.design_name(sim2d.parse_design(d)) for d in cfg.train)
+    demos = "_".join(sim2d.design_name(sim2d.parse_design(d)) for d in cfg.demos)
     if is_ppo(cfg):
-        return f"{train}-ppo-seed{cfg.seed}"
-    demos = "_".join(sim2d.design_name(sim2d.parse_design(d)) for d in cfg.demos) or "rl"
-    return f"{train}-{demos}-seed{cfg.seed}"
+        return f"{train}-ppo{'_' + demos if demos else ''}-seed{cfg.seed}"
+    return f"{train}-{demos or 'rl'}-seed{cfg.seed}"
 
 
 def atomic_write(path: Path, write) -> None:
@@ -101,14 +104,14 @@ def config_from_dict(d: dict):
         raise UsageError(f"this run was written by another version of the code: settings {', '.join(unknown)} "
                          "no longer exist (docs/ablations.md, Removed mechanisms); start a new run")
     d["gnn"] = GNNConfig(**d["gnn"])
-    d["train"] = tuple(d["train"])
-    if cls is rlil.Config:
-        d["demos"] = tuple(d["demos"])
+    d["train"], d["demos"] = tuple(d["train"]), tuple(d.get("demos", ()))   # PPO runs before PPO+IL had none
     return cls(**d)
 
 
 def method_of(cfg) -> str:
-    return "PPO" if is_ppo(cfg) else "RL+IL" if cfg.demos else "RL"
+    if is_ppo(cfg):
+        return "PPO+IL" if cfg.demos else "PPO"
+    return "RL+IL" if cfg.demos else "RL"
 
 
 def policy_to_evaluate(cfg, policy: ModularPolicy):
@@ -132,7 +135,7 @@ def save_metrics(out: Path, cfg: rlil.Config, metrics: list[dict]) -> None:
     atomic_write(out / "metrics.csv", write_csv)
 
 
-COLOURS = {"RL+IL": "tab:blue", "RL": "tab:red", "PPO": "tab:green"}
+COLOURS = {"RL+IL": "tab:blue", "RL": "tab:red", "PPO": "tab:green", "PPO+IL": "tab:purple"}
 
 
 def save_curve(out: Path, cfg, metrics: list[dict]) -> None:
@@ -279,13 +282,13 @@ def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
         last.update(t=time.perf_counter(), iteration=run.iteration)
 
     try:
+        demo_data = rlil.load_demos(cfg, cache_dir)
+        if demo_data:
+            log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
+                                       for d, v in demo_data.items()))
         if is_ppo(cfg):
-            run = ppo_lib.ppo(cfg, run=run, log=log, on_evaluation=on_iteration)
+            run = ppo_lib.ppo(cfg, run=run, log=log, on_evaluation=on_iteration, demo_data=demo_data)
         else:
-            demo_data = rlil.load_demos(cfg, cache_dir)
-            if demo_data:
-                log("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
-                                           for d, v in demo_data.items()))
             run = rlil.algorithm1(cfg, demo_data, run=run, log=log, on_iteration=on_iteration)
     except BaseException:
         if created and not (out / "checkpoint.pt").exists():
@@ -297,17 +300,34 @@ def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
     return run.metrics
 
 
-def evaluate_run(run_dir: Path, design: str, gif: str | None = None, png: str | None = None) -> float:
-    """Zero-shot or not: the saved policy on any design, distance in 200 steps from the run's
-    evaluation starts."""
-    ckpt = load_checkpoint(run_dir / "policy.pt")
+def load_policy(run_dir: Path):
+    """A run directory's policy.pt: (its config, the policy as it is evaluated, its iteration)."""
+    ckpt = load_checkpoint(Path(run_dir) / "policy.pt")
     cfg = config_from_dict(ckpt["config"])
     policy = ModularPolicy(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
+    return cfg, policy_to_evaluate(cfg, policy), ckpt["iteration"]
+
+
+def check_new(paths, force: bool) -> None:
+    """A UsageError naming the existing files among `paths` (None skipped) unless `force`."""
+    existing = [str(p) for p in paths if p is not None and Path(p).exists()]
+    if existing and not force:
+        raise UsageError(f"{', '.join(existing)} already exist{'s' if len(existing) == 1 else ''}: "
+                         "use --force to replace, or name another output")
+
+
+def evaluate_run(run_dir: Path, design: str, gif: str | None = None, png: str | None = None,
+                 force: bool = False) -> float:
+    """Zero-shot or not: the saved policy on any design, distance in 200 steps from the run's
+    evaluation starts."""
+    check_new([gif, png], force)
+    cfg, policy, iteration = load_policy(run_dir)
+    torch.set_num_threads(cfg.threads)                  # as the run evaluated itself
     graph = sim2d.design_graph(design)
-    result = rlil.evaluate_policy(policy_to_evaluate(cfg, policy), graph.code, cfg, rlil.eval_seed(cfg))
+    result = rlil.evaluate_policy(policy, graph.code, cfg, rlil.eval_seed(cfg))
     d = result.distance_m
-    print(f"policy {run_dir} (iteration {ckpt['iteration']}) on {graph.name} ({graph.code}): "
+    print(f"policy {run_dir} (iteration {iteration}) on {graph.name} ({graph.code}): "
           f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result.flipped.sum())}")
     title = f"{run_dir.name} on {graph.name}: {d[0]:.1f} m in {cfg.eval_steps} steps"
     if gif:
@@ -373,7 +393,7 @@ def config_args(cfg) -> list[str]:
     field that differs from the default."""
     default = type(cfg)()
     args = (["--method", "ppo"] if is_ppo(cfg) else []) + ["--train", *cfg.train]
-    args += ["--demos", *cfg.demos] if not is_ppo(cfg) and cfg.demos else []
+    args += ["--demos", *cfg.demos] if cfg.demos else []
     for flag, dest, f in all_flags(cfg):
         value = getattr(cfg.gnn, f.name) if dest.startswith("gnn_") else getattr(cfg, f.name)
         base = getattr(default.gnn, f.name) if dest.startswith("gnn_") else getattr(default, f.name)
@@ -386,13 +406,20 @@ def build_parser() -> sim2d.CliParser:
     p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) and the PPO baseline on the planar world.")
     p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
                    f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget and the class demo)")
-    p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>)")
+    p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>); with --transfer: "
+                   "the folder of its outputs (default runs/transfer)")
     p.add_argument("--resume", action="store_true", help="continue an existing run after its last iteration")
-    p.add_argument("--force", action="store_true", help="start afresh, replacing an existing run's outputs")
+    p.add_argument("--force", action="store_true", help="start afresh, replacing an existing run's outputs "
+                   "(--eval, --transfer, --compare: replace existing outputs)")
     p.add_argument("--eval", metavar="RUN_DIR", help="evaluate a saved policy (with --design)")
-    p.add_argument("--design", help="design for --eval (any of the 728, trained on or not)")
-    p.add_argument("--gif", help="with --eval: write an animation of the first start")
-    p.add_argument("--png", help="with --eval: write six snapshots of the first start")
+    p.add_argument("--design", nargs="+", metavar="DESIGN", help="design for --eval or --compare (any of the 728, "
+                   "trained on or not); with --transfer: the designs besides the held-out ones (default Figure 3's)")
+    p.add_argument("--gif", help="with --eval or --compare: write an animation of the first start")
+    p.add_argument("--png", help="with --eval or --compare: write six snapshots of the first start")
+    p.add_argument("--transfer", nargs="+", metavar="RUN_DIR", help="zero-shot transfer table: each run's policy "
+                   "on --design and the 50 held-out designs, against their demonstrators (transfer.py)")
+    p.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"), help="draw two runs' policies on one "
+                   "--design from the same start into --gif (and --png)")
     p.add_argument("--figure3", action="store_true",
                    help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
     p.add_argument("--seeds", type=int, default=3, help="with --figure3 or --sample-efficiency: seeds per condition (default 3)")
@@ -423,10 +450,18 @@ def build_parser() -> sim2d.CliParser:
             kind = dict(type=parse_bool if isinstance(value, bool) else type(value))
         group.add_argument(flag, dest=dest, default=None, help=f"{helps[f.name]} (default {value})", **kind)
     ppo_default, ppo_helps = ppo_lib.PPOConfig(), field_help(ppo_lib.PPOConfig)
+    told = {"train", "seed", "threads", "episode_steps", "eval_episodes", "eval_steps", "gnn"}
+    shared = [f.name for f in dataclasses.fields(ppo_lib.PPOConfig)
+              if f.name in {g.name for g in dataclasses.fields(rlil.Config)} - told]   # demos, bc_steps, il_*, ...
+    differ = [n for n in shared if ppo_helps[n] != helps[n] or getattr(ppo_default, n) != getattr(default, n)]
     group = p.add_argument_group(
         "PPO, with --method ppo (ppo_minimal.PPOConfig)",
         "PPO also takes --train (one design), --seed, --threads (default 1), --episode-steps (T, default 200), "
-        "--eval-episodes, --eval-steps and the --gnn-* flags above; --preset tiny is its tests' budget.")
+        "--eval-episodes, --eval-steps and the --gnn-* flags above; --preset tiny is its tests' budget. "
+        f"With --demos it is PPO+IL (after DAPG) and takes {', '.join('--' + n.replace('_', '-') for n in shared)} "
+        "above, with these meanings or defaults for PPO: "
+        + "; ".join(f"--{n.replace('_', '-')}: {ppo_helps[n]} (default {getattr(ppo_default, n)})"
+                    for n in differ) + ".")
     for flag, dest, f in ppo_flags():
         value = getattr(ppo_default, f.name)
         group.add_argument(flag, dest=dest, default=None, help=f"{ppo_helps[f.name]} (default {value})",
@@ -527,14 +562,19 @@ def main(argv=None) -> int:
             return sweep(args)
         if args.launcher != "local" or args.ray_address or args.plan or args.collect:
             raise UsageError("--launcher, --ray-address, --plan and --collect go with --figure3 or --sample-efficiency")
+        if args.transfer or args.compare:
+            sys.modules.setdefault("train", sys.modules[__name__])   # run as a script: transfer gets this module
+            import transfer                                           # transfer imports train: not at the top
+            return transfer.main(args)
         if args.eval:
-            if not args.design:
-                raise UsageError("--eval needs --design DESIGN")
+            if not args.design or len(args.design) > 1:
+                raise UsageError("--eval needs one --design DESIGN")
+            args.design = args.design[0]
             try:
                 sim2d.design_graph(args.design)
             except ValueError as e:
                 raise UsageError(str(e))
-            evaluate_run(Path(args.eval), args.design, args.gif, args.png)
+            evaluate_run(Path(args.eval), args.design, args.gif, args.png, args.force)
             return 0
         if not args.train:
             raise UsageError("say what to train with --train DESIGN [DESIGN ...] (or --eval RUN_DIR)")

@@ -466,6 +466,12 @@ def test_cli_eval_zero_shot(tmp_path, cache):
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
                          capture_output=True, text=True, check=True)
     assert np.isfinite(float(out.stdout.strip().splitlines()[-1].split("distance_m=")[1]))
+    png = tmp_path / "mine.png"                                  # a user's file is never overwritten
+    png.write_bytes(b"keep")
+    with pytest.raises(SystemExit) as exit_:
+        train.main(["--eval", str(tmp_path), "--design", "car", "--png", str(png)])
+    assert exit_.value.code == 2
+    assert png.read_bytes() == b"keep"
 
 
 # ----------------------------------------------------------------------------
@@ -607,3 +613,75 @@ def test_trust_region_keeps_the_policy_phase_near_the_previous_policy(car_data):
         with torch.no_grad():
             kl[weight] = rlil.trust_region_loss(policy, start, car_data, cfg, np.random.default_rng(1)).item()
     assert kl[100.0] < 0.5 * kl[0.0], kl
+
+
+def test_clone_data_adds_the_clones_rollouts_before_the_first_model_fit(monkeypatch, hexapod_demos):
+    """--clone-data: the first model fit sees the random episodes plus 2 x policy_episodes episodes
+    of the cloned policy (noiseless, then noisy), counted in sim_steps, and the clone's return on
+    its noiseless ones becomes the reference of the improvement check; without demos it does
+    nothing.  Fails when `add_clone_rollouts` is skipped."""
+    seen, at_0 = [], []
+    fit = rlil.train_model
+
+    def counting_fit(model, data, *args, **kw):
+        seen.append(len(data["wnwwnw"].actions))
+        return fit(model, data, *args, **kw)
+    monkeypatch.setattr(rlil, "train_model", counting_fit)
+    cfg = smoke(train=("car",), demos=("hexapod",), iters=1, policy_episodes=2, clone_data=True)
+    run = rlil.algorithm1(cfg, hexapod_demos, log=quiet,
+                          on_iteration=lambda r: at_0.append(r.kept_return) if r.iteration == 0 else None)
+    n = cfg.random_episodes
+    assert seen == [n + 2 * cfg.policy_episodes]
+    clone = rlil.Trajectories("wnwwnw", run.data["wnwwnw"].states[n:n + 4], run.data["wnwwnw"].actions[n:n + 4])
+    assert at_0 == [pytest.approx(rlil.policy_return({"wnwwnw": clone}, cfg))]
+    steps = rlil.sim_steps(dataclasses.replace(cfg, clone_data=False), 0)
+    assert run.metrics[0]["sim_steps"] == steps + 2 * cfg.policy_episodes * cfg.episode_steps
+    seen.clear()
+    rlil.algorithm1(dataclasses.replace(cfg, demos=()), {}, log=quiet)    # plain RL: no clone to run
+    assert seen == [n]
+
+
+def test_improvement_check_keeps_the_previous_policy_when_the_new_one_returns_less(car_data):
+    """--keep-better: the new policy stays when its noiseless return is at least the kept one's
+    minus the margin (and becomes the reference); otherwise the previous weights come back and
+    the reference stays.  `policy_return` is the mean over the noiseless episodes of the summed
+    reward.  Fails when the check keeps every policy."""
+    cfg = tiny(policy_episodes=3)
+    traj = car_data["wnwwnw"]
+    by_hand = np.mean([sum(float(sim2d.reward(traj.states[e, t], traj.actions[e, t], traj.states[e, t + 1],
+                                              sim2d.design_graph("car"))) for t in range(cfg.episode_steps))
+                       for e in range(3)])
+    value = rlil.policy_return(car_data, cfg)
+    assert value == pytest.approx(by_hand, rel=1e-4, abs=1e-4)
+    rlil.seed_everything(0)
+    previous = rlil.ModularPolicy(cfg.gnn).state_dict()
+    for kept, margin, expect_keep in ((value + 1, 0.0, False), (value + 1, 2.0, True), (value - 1, 0.0, True),
+                                      (None, 0.0, True)):
+        rlil.seed_everything(1)
+        policy = rlil.ModularPolicy(cfg.gnn)
+        new = copy.deepcopy(policy.state_dict())
+        run = rlil.Run(cfg, policy, None, {}, 0.0, np.random.default_rng(0), kept_return=kept)
+        out = rlil.improvement_check(policy, previous, car_data, run,
+                                     dataclasses.replace(cfg, improvement_margin=margin))
+        assert out == {"policy_return": value, "kept_new": expect_keep}
+        weights = previous if not expect_keep else new
+        assert all(torch.equal(policy.state_dict()[k], weights[k]) for k in weights)
+        assert run.kept_return == (value if expect_keep else kept)
+
+
+def test_algorithm1_with_keep_better_continues_from_the_kept_policy(tmp_path, monkeypatch):
+    """Inside Algorithm 1: an iteration whose policy returns less ends with the policy it started
+    from (its data still added to T_train), the next phase starts there, and a checkpoint keeps
+    the reference.  The returns are scripted: 1, then 0 (rejected), then 2."""
+    returns = iter([1.0, 0.0, 2.0])
+    monkeypatch.setattr(rlil, "policy_return", lambda new_data, cfg: next(returns))
+    cfg = smoke(train=("car",), iters=3, policy_episodes=2, keep_better=True)
+    policies = []
+    run = rlil.algorithm1(cfg, {}, log=quiet, on_iteration=lambda r: policies.append(copy.deepcopy(r.policy.state_dict())))
+    assert [row.get("kept_new") for row in run.metrics] == [None, True, False, True]
+    assert all(torch.equal(policies[2][k], policies[1][k]) for k in policies[1])
+    assert not all(torch.equal(policies[3][k], policies[2][k]) for k in policies[2])
+    assert len(run.data["wnwwnw"].actions) == cfg.random_episodes + 3 * 2 * cfg.policy_episodes
+    assert run.kept_return == 2.0
+    train.save_checkpoint(tmp_path, run)
+    assert train.restore_run(train.load_checkpoint(tmp_path / "checkpoint.pt"), cfg).kept_return == 2.0
