@@ -18,9 +18,14 @@ in Algorithm 1's order:
     decay_il_weight          line 30
     evaluate_iteration       not in Algorithm 1: Sec. IV's distance in 200 steps, per iteration
 
-Not in the paper, each behind a switch that is off by default, and kept together
-in the last section of this file: an ensemble of models with held-out members
-(`--ensemble`, `--held-out-models`) and a soft trust region (`--trust-region`).
+Not in the paper, each behind a switch and kept together in the last section of
+this file.  On by default (docs/stability.md measured them): the first model
+also sees the clone's roll-outs (`--clone-data`, `add_clone_rollouts`) and an
+improvement check that keeps the previous policy when the new one does worse in
+the simulator (`--keep-better`, `improvement_check`).  Off by default: an
+ensemble of models with held-out members (`--ensemble`, `--held-out-models`)
+and a soft trust region (`--trust-region`).  `--clone-data off --keep-better
+off` is the paper's Algorithm 1.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
@@ -95,16 +100,17 @@ class Config:
     # Evaluation (Sec. IV): distance in 200 control steps
     eval_episodes: int = 8           # perturbed starts per evaluation
     eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
-    # Not in the paper (the last section of this file); the defaults are the paper
+    # Not in the paper (the last section of this file); off = the paper
     ensemble: int = 1                # models trained side by side on T_train (PETS, ME-TRPO); 1 = the paper
     held_out_models: int = 0         # ensemble members the policy never trains through; the validation
                                      # reward of Sec. III-J is judged on them (ME-TRPO); below ensemble
     trust_region: float = 0.0        # weight of a penalty on KL(previous iteration's policy || policy)
                                      # on windows of T_train (TRPO, PPO's KL penalty); 0 = the paper; 0-10
-    clone_data: bool = False         # the first model also fits the cloned policy's roll-outs, collected
-                                     # after line 1 as lines 28-29 collect (no effect without demos)
-    keep_better: bool = False        # after lines 28-29, keep the previous policy when the new one's noiseless
-                                     # roll-outs return less than the kept one's, minus improvement_margin
+    clone_data: bool = True          # the first model also fits the cloned policy's roll-outs, collected
+                                     # after line 1 as lines 28-29 collect (no effect without demos); off = the paper
+    keep_better: bool = True         # after lines 28-29, keep the previous policy when the new one's noiseless
+                                     # roll-outs return less than the kept one's, minus improvement_margin;
+                                     # off = the paper
     improvement_margin: float = 0.0  # with keep_better: return (about metres per episode) a new policy may
                                      # lose and still be kept; 0-2
     gnn: GNNConfig = field(default_factory=GNNConfig)
@@ -723,8 +729,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 
 # ----------------------------------------------------------------------------
-# Not in the paper: switches against model error, all off by default
-# (docs/ablations.md has what each measured)
+# Not in the paper: switches against model error.  clone_data and keep_better are on
+# by default (docs/stability.md), the ensemble and the trust region off (docs/ablations.md)
 # ----------------------------------------------------------------------------
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""

@@ -656,25 +656,28 @@ def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig,
 # and (d), both methods, 5 seeds, each against the default on the same seeds
 # ----------------------------------------------------------------------------
 SCREEN = {   # variant: (its train.py flags, the variant whose RL runs are its own: None = its own runs)
-    "default": ((), None),
-    "clone_data": (("--clone-data", "on"), "default"),             # acts only with demos: RL is the default
-    "keep_better": (("--keep-better", "on"), None),
+    "paper": (("--clone-data", "off", "--keep-better", "off"), None),
+    "clone_data": (("--clone-data", "on", "--keep-better", "off"), "paper"),   # acts only with demos
+    "keep_better": (("--clone-data", "off", "--keep-better", "on"), None),
     "clone_data+keep_better": (("--clone-data", "on", "--keep-better", "on"), "keep_better"),
-    "contact_features": (("--gnn-contact-features", "on"), None),
+}
+CONFIRM = {  # the 10-seed Figure 3 with the chosen defaults against the paper's Algorithm 1, same seeds
+    "paper": SCREEN["paper"],
+    "default (clone_data+keep_better)": ((), None),
 }
 SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost between consecutive iterations
 
 
-def screen_dir(root: Path, variant: str) -> Path:
-    """Where a variant's committed metrics.json live: the default's are the 10-seed Figure 3's."""
-    return root / "results" / ("figure3_runs" if variant == "default" else f"stability_runs/{variant}")
+def variant_dir(root: Path, variant: str) -> Path:
+    """Where a variant's committed metrics.json live: the defaults' are Figure 3's."""
+    return root / "results" / ("figure3_runs" if variant.startswith("default") else f"stability_runs/{variant}")
 
 
-def screen_rows(root: Path) -> list[dict]:
-    """FIGURE3_COLUMNS rows, with the variant, of every finished run of the screen."""
+def variant_rows(root: Path, variants: dict, seeds: int, panels: str) -> list[dict]:
+    """FIGURE3_COLUMNS rows, with the variant, of every finished run of `variants` (SCREEN, CONFIRM)."""
     rows = []
-    for variant, (_, rl_from) in SCREEN.items():
-        runs = figure3_runs(screen_dir(root, variant), rlil.Config(), SCREEN_SEEDS, 2, SCREEN_PANELS)
+    for variant, (_, rl_from) in variants.items():
+        runs = figure3_runs(variant_dir(root, variant), rlil.Config(), seeds, 2, panels)
         rows += [{"variant": variant, **row} for row in figure3_rows(
             [r for r in runs if not (rl_from and r["method"] == "RL")])]
     return rows
@@ -685,49 +688,66 @@ def largest_fall(curve: dict, iters: int) -> float:
     return max([0.0] + [curve[i] - curve[i + 1] for i in range(1, iters) if i in curve and i + 1 in curve])
 
 
-def summarize_screen(rows: list[dict]) -> str:
+def variant_stats(rows: list[dict], variant: str, rl_from: str | None, panel: str, iters: int) -> dict:
+    """method -> per_run's lists (area, final) plus curves, mean curve, falls, exploitation and time,
+    for one variant and panel (its RL runs those of `rl_from` when given)."""
+    sub = [r for r in rows if r["panel"] == panel and (
+        (r["variant"] == variant and r["method"] == "RL+IL") or (r["variant"] == (rl_from or variant)
+                                                               and r["method"] == "RL"))]
+    runs, gaps, mean, _ = panel_curves(sub, panel, iters)
+    stats = per_run((runs, gaps, mean, float("inf")), iters)
+    for method, s in stats.items():
+        s.update(curves=runs[method], mean=mean[method],
+                 falls=[largest_fall(c, iters) for c in runs[method].values()],
+                 exploit=max([np.mean(g) for i, g in gaps.get(method, {}).items() if i >= 1], default=float("nan")),
+                 seconds=np.mean([sum(r["seconds"] or 0 for r in sub if r["method"] == method and r["seed"] == seed)
+                                  for seed in runs[method]]))
+    return stats
+
+
+def difference(x, y) -> str:
+    """mean(x) - mean(y) [its 95 % bootstrap CI], or empty when either is empty."""
+    return f"{np.mean(x) - np.mean(y):.2f} {interval(bootstrap_diff_ci(x, y))}" if len(x) and len(y) else ""
+
+
+def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
     """Markdown, one line per variant, panel and method: mean distance per iteration, the final
     mean with its 95 % CI, the seeds that fall by more than FALL_M m between consecutive
     iterations from iteration 1 on (and the largest fall), exploitation (the largest mean over
     seeds of |model - simulator progress| over the first T steps, iterations >= 1), the area
-    under the curve and, on the RL+IL line, RL+IL - RL in it with its CI, and the mean time."""
+    under the curve, the variant − "paper" in it (same method, same seeds) and, on the RL+IL
+    line, RL+IL − RL in it, each with its 95 % CI, and the mean time per run."""
     iters = max(r["iteration"] for r in rows)
     lines = ["| variant | flags | panel | method | seeds | mean distance, iterations 0 → "
              f"{iters} (m) | final [95 % CI] (m) | seeds falling > {FALL_M:.0f} m (largest fall, m) "
-             "| exploitation (m) | area under the curve (m) | RL+IL − RL in area [95 % CI] (m) | time per run (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for variant, (flags, rl_from) in SCREEN.items():
+             "| exploitation (m) | area under the curve (m) | − paper in area [95 % CI] (m) "
+             "| RL+IL − RL in area [95 % CI] (m) | time per run (s) |",
+             "|---" * 13 + "|"]
+    panels = [p for p in PANELS if any(r["panel"] == p for r in rows)]
+    for variant, (flags, rl_from) in variants.items():
         code = f"`{' '.join(flags)}`" if flags else ""
-        for panel in SCREEN_PANELS:
-            own = [r for r in rows if r["variant"] == variant and r["panel"] == panel]
-            rl = [r for r in rows if r["variant"] == (rl_from or variant) and r["panel"] == panel
-                  and r["method"] == "RL"]
-            sub = [r for r in own if r["method"] == "RL+IL"] + rl
-            if not sub:
-                continue
-            runs, gaps, mean, _ = panel_curves(sub, panel, iters)
-            stats = per_run((runs, gaps, mean, float("inf")), iters)
+        for panel in panels:
+            stats = variant_stats(rows, variant, rl_from, panel, iters)
+            paper = variant_stats(rows, "paper", None, panel, iters) if variant != "paper" else {}
             for method in ("RL+IL", "RL"):
-                if method not in runs:
+                if method not in stats:
                     continue
-                curves, s = runs[method], stats[method]
-                falls = [largest_fall(c, iters) for c in curves.values()]
-                exploit = max([np.mean(g) for i, g in gaps.get(method, {}).items() if i >= 1], default=float("nan"))
-                seconds = np.mean([sum(r["seconds"] or 0 for r in sub if r["method"] == method and r["seed"] == seed)
-                                   for seed in curves])
-                diff = ""
-                if method == "RL+IL" and stats.get("RL", {}).get("auc") and s["auc"]:
-                    diff = (f"{np.mean(s['auc']) - np.mean(stats['RL']['auc']):.2f} "
-                            f"{interval(bootstrap_diff_ci(s['auc'], stats['RL']['auc']))}")
-                shared = f" (the {rl_from} runs)" if method == "RL" and rl_from else ""
-                final = (f"{np.mean(s['final']):.2f} {interval(bootstrap_ci(s['final']))}" if s["final"] else "")
+                s = stats[method]
+                label = f"{variant} (the {rl_from} runs)" if method == "RL" and rl_from else variant
+                if not s["auc"]:
+                    lines.append(f"| {label} | {code} | ({panel}) {PANELS[panel][0]} | {method} | "
+                                 f"{len(s['curves'])} | unfinished |" + " |" * 7)
+                    continue
+                curve = ", ".join(f"{s['mean'][i]:.1f}" for i in sorted(s["mean"]))
+                same_runs = method == "RL" and rl_from == "paper"                 # nothing to compare
+                against = difference(s["auc"], paper[method]["auc"]) if method in paper and not same_runs else ""
+                gap = difference(s["auc"], stats["RL"]["auc"]) if method == "RL+IL" and "RL" in stats else ""
                 lines.append(
-                    f"| {variant}{shared} | {code} "
-                    f"| ({panel}) {PANELS[panel][0]} | {method} | {len(curves)} "
-                    f"| {', '.join(f'{mean[method][i]:.1f}' for i in sorted(mean[method]))} | {final} "
-                    f"| {sum(f > FALL_M for f in falls)} ({max(falls):.2f}) | {exploit:.2f} "
-                    f"| {np.mean(s['auc']):.2f} | {diff} | {seconds:.0f} |" if s["auc"] else
-                    f"| {variant}{shared} | | ({panel}) | {method} | {len(curves)} | unfinished | | | | | | |")
+                    f"| {label} | {code} | ({panel}) {PANELS[panel][0]} | {method} | {len(s['auc'])} "
+                    f"| {curve} "
+                    f"| {np.mean(s['final']):.2f} {interval(bootstrap_ci(s['final']))} "
+                    f"| {sum(f > FALL_M for f in s['falls'])} ({max(s['falls']):.2f}) | {s['exploit']:.2f} "
+                    f"| {np.mean(s['auc']):.2f} | {against} | {gap} | {s['seconds']:.0f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -819,8 +839,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
     rows = read_rows_csv(results / "sample_efficiency.csv")
     tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
-    if (results / "stability_screen.csv").exists():
-        tables[results / "stability_screen.md"] = summarize_screen(read_rows_csv(results / "stability_screen.csv"))
+    for name, variants in (("stability_screen", SCREEN), ("stability_confirm", CONFIRM)):
+        if (results / f"{name}.csv").exists():
+            tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants)
     for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
             tables[results / f"{md}.md"] = summarize_iterations(
@@ -902,13 +923,16 @@ def main(argv=None) -> int:
                         help="copy the metrics.json of every finished Algorithm 1 run in SWEEP_DIR to "
                              "DEST/<run name>/ (what is committed of a sweep)")
     parser.add_argument("--screen", action="store_true",
-                        help="write results/stability_screen.csv from the committed runs of issue #23's screen "
-                             "(results/stability_runs/<variant>/, the default's in results/figure3_runs/)")
+                        help="write results/stability_screen.csv and stability_confirm.csv from the committed runs "
+                             "of issue #23 (results/stability_runs/<variant>/, the defaults' in results/figure3_runs/)")
     args = parser.parse_args(argv)
     if args.screen:
-        rows = screen_rows(ROOT)
-        write_rows_csv(ROOT / "results" / "stability_screen.csv", ["variant"] + FIGURE3_COLUMNS, rows)
-        print(f"wrote results/stability_screen.csv: {len({(r['variant'], r['panel'], r['method'], r['seed']) for r in rows})} runs")
+        for name, variants, seeds, panels in (("stability_screen", SCREEN, SCREEN_SEEDS, SCREEN_PANELS),
+                                              ("stability_confirm", CONFIRM, 10, "abcd")):
+            rows = variant_rows(ROOT, variants, seeds, panels)
+            write_rows_csv(ROOT / "results" / f"{name}.csv", ["variant"] + FIGURE3_COLUMNS, rows)
+            runs = len({(r["variant"], r["panel"], r["method"], r["seed"]) for r in rows})
+            print(f"wrote results/{name}.csv: {runs} runs")
         return 0
     if args.keep_metrics:
         src, dest = map(Path, args.keep_metrics)

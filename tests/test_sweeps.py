@@ -152,6 +152,29 @@ def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
     assert "| RL+IL lowers the variance of convergence |" in table and table.count("not settled") == 1
 
 
+def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper():
+    """Issue #23's tables: a fall is a loss between consecutive iterations from iteration 1 on (the
+    clone's 0 -> 1 does not count), the exploitation column is the largest mean |model - simulator|,
+    and "- paper" is the variant's area under the curve minus the paper's, same method."""
+    assert sweeps.largest_fall({0: 10, 1: 2, 2: 9, 3: 5}, 3) == 4 and sweeps.largest_fall({0: 1, 1: 2}, 1) == 0
+    rows = []
+    for variant, rlil_curve, rl_curve in (("paper", [9, 20, 10, 20], [0, 5, 10, 15]),
+                                          ("keep_better", [9, 20, 20, 20], [0, 5, 10, 16])):
+        for method, curve in (("RL+IL", rlil_curve), ("RL", rl_curve)):
+            for seed in range(3):
+                rows += [{"variant": variant, "panel": "d", "method": method, "seed": seed, "iteration": i,
+                          "distance_m": d, "model_progress_m": 1.0 + 0.5 * seed if i else None,
+                          "sim_progress_m": 1.0 if i else None, "seconds": 1.0} for i, d in enumerate(curve)]
+    table = sweeps.summarize_variants(rows, {"paper": sweeps.SCREEN["paper"], "keep_better": sweeps.SCREEN["keep_better"]})
+    line = {(c[1].strip(), c[4].strip()): c for c in (row.split("|") for row in table.splitlines()[2:])}
+    assert line[("paper", "RL+IL")][8].strip() == "3 (10.00)" and line[("keep_better", "RL+IL")][8].strip() == "0 (0.00)"
+    assert line[("paper", "RL+IL")][9].strip() == "0.50"                   # mean of |0|, |0.5|, |1.0|
+    assert line[("keep_better", "RL+IL")][10].strip() == "20.00"
+    assert line[("keep_better", "RL+IL")][11].strip() == "3.33 [3.33, 3.33]"   # 20 - mean(20, 10, 20)
+    assert line[("keep_better", "RL")][11].strip() == "0.33 [0.33, 0.33]"
+    assert line[("paper", "RL+IL")][12].strip() == "6.67 [6.67, 6.67]"      # 16.67 - 10
+
+
 # ----------------------------------------------------------------------------
 # Launchers: local processes, Ray, and a plan any scheduler runs, then --collect
 # ----------------------------------------------------------------------------
