@@ -522,7 +522,7 @@ def sample_efficiency_runs(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOCo
         for method in ("RL+IL", "RL", "PPO"):
             for seed in range(seeds):
                 if method == "PPO":
-                    cfg = dataclasses.replace(base_ppo, train=code, seed=seed,
+                    cfg = dataclasses.replace(base_ppo, train=code, seed=seed, demos=(),   # plain PPO
                                               threads=1 if jobs > 1 else base_ppo.threads)
                 else:
                     cfg = dataclasses.replace(base, train=code, seed=seed, threads=1 if jobs > 1 else base.threads,
@@ -669,8 +669,10 @@ SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost b
 
 
 def variant_dir(root: Path, variant: str) -> Path:
-    """Where a variant's committed metrics.json live: the defaults' are Figure 3's."""
-    return root / "results" / ("figure3_runs" if variant.startswith("default") else f"stability_runs/{variant}")
+    """Where a variant's committed metrics.json live: the paper's are issue #22's 10-seed Figure 3
+    (results/figure3_runs/), the confirmation's in results/stability_runs/defaults/ until it is complete."""
+    return root / "results" / ("figure3_runs" if variant == "paper" else
+                               "stability_runs/defaults" if variant.startswith("default") else f"stability_runs/{variant}")
 
 
 def variant_rows(root: Path, variants: dict, seeds: int, panels: str) -> list[dict]:
@@ -748,6 +750,44 @@ def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
                     f"| {np.mean(s['final']):.2f} {interval(bootstrap_ci(s['final']))} "
                     f"| {sum(f > FALL_M for f in s['falls'])} ({max(s['falls']):.2f}) | {s['exploit']:.2f} "
                     f"| {np.mean(s['auc']):.2f} | {against} | {gap} | {s['seconds']:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
+def summarize_targets(rows: list[dict], variant: str) -> str:
+    """Markdown: issue #23's targets 1-5, each measured on `variant`'s runs (seeds counted per line)."""
+    iters = max(r["iteration"] for r in rows)
+    stats = {p: variant_stats(rows, variant, None, p, iters) for p in PANELS if any(r["panel"] == p for r in rows)}
+    met = lambda ok: "met" if ok else "missed"                              # noqa: E731
+    lines = ["| target | panel | seeds (RL+IL, RL) | measured | met? |", "|---|---|---|---|---|"]
+    for p, s in stats.items():
+        if not (s.get("RL+IL", {}).get("auc") and s.get("RL", {}).get("auc")):
+            continue
+        rlil, rl = s["RL+IL"], s["RL"]
+        seeds = f"{len(rlil['auc'])}, {len(rl['auc'])}"
+        name = f"({p}) {PANELS[p][0]}"
+        n_rlil, n_rl = sum(f > FALL_M for f in rlil["falls"]), sum(f > FALL_M for f in rl["falls"])
+        lines.append(f"| 1. no RL+IL seed falls > {FALL_M:.0f} m from iteration 1 on; RL at most 1 in 10 | {name} "
+                     f"| {seeds} | RL+IL {n_rlil} (largest {max(rlil['falls']):.2f} m), RL {n_rl} "
+                     f"(largest {max(rl['falls']):.2f} m) | {met(n_rlil == 0 and n_rl <= len(rl['falls']) / 10)} |")
+        if p == "a":
+            final, start = np.mean(rlil["final"]), rlil["mean"][0]
+            lines.append(f"| 2. hexapod RL+IL final ≥ iteration 0 + 2 m and ≥ 15 m | {name} | {seeds} "
+                         f"| {final:.2f} m against {start:.2f} m at iteration 0 | {met(final >= start + 2 and final >= 15)} |")
+        worst = max(rlil["exploit"], rl["exploit"])
+        lines.append(f"| 3. exploitation ≤ 0.3 m | {name} | {seeds} | RL+IL {rlil['exploit']:.2f}, RL {rl['exploit']:.2f} m "
+                     f"| {met(worst <= 0.3)} |")
+        if p == "b":
+            gap = np.mean(rlil["final"]) - np.mean(rl["final"])
+            lines.append(f"| 4. car: RL+IL final within 1 m of RL's | {name} | {seeds} | {gap:.2f} m | {met(abs(gap) <= 1)} |")
+        else:
+            ci = bootstrap_diff_ci(rlil["auc"], rl["auc"])
+            lines.append(f"| 4. RL+IL − RL in area under the curve: 95 % CI above 0 | {name} | {seeds} "
+                         f"| {np.mean(rlil['auc']) - np.mean(rl['auc']):.2f} {interval(ci)} | {met(ci[0] > 0)} |")
+        if p == "d":
+            first = {seed: c for seed, c in rlil["curves"].items() if seed < 5}
+            low = [seed for seed, c in first.items() if min(c[i] for i in range(1, iters + 1)) <= 15]
+            lines.append(f"| 5. main command, seeds 0-4: every iteration ≥ 1 above 15 m | {name} | {len(first)} "
+                         f"| {'seeds ' + ', '.join(map(str, low)) + ' below' if low else 'all above'} | {met(not low)} |")
     return "\n".join(lines) + "\n"
 
 
@@ -834,14 +874,20 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     tables[results / "figure3.md"] = figure3_table(rows)
     tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
                                                              len({r["seed"] for r in rows}))
-    main = [r for r in rows if r["panel"] == "d" and r["method"] == "RL+IL"]         # the README's main command
-    tables[results / "main_command.md"] = summarize_iterations(main)
-    tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
+    if (results / "stability_confirm.csv").exists():     # the README's main command: panel (d), RL+IL, today's defaults
+        main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")
+                if r["variant"].startswith("default") and r["panel"] == "d" and r["method"] == "RL+IL"]
+        tables[results / "main_command.md"] = summarize_iterations(main)
+        tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
     rows = read_rows_csv(results / "sample_efficiency.csv")
     tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
     for name, variants in (("stability_screen", SCREEN), ("stability_confirm", CONFIRM)):
         if (results / f"{name}.csv").exists():
             tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants)
+    if (results / "stability_confirm.csv").exists():
+        rows = read_rows_csv(results / "stability_confirm.csv")
+        tables[results / "stability_targets.md"] = "\n".join(
+            f"**{variant}**\n\n{summarize_targets(rows, variant)}" for variant in CONFIRM)
     for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
             tables[results / f"{md}.md"] = summarize_iterations(
@@ -924,7 +970,8 @@ def main(argv=None) -> int:
                              "DEST/<run name>/ (what is committed of a sweep)")
     parser.add_argument("--screen", action="store_true",
                         help="write results/stability_screen.csv and stability_confirm.csv from the committed runs "
-                             "of issue #23 (results/stability_runs/<variant>/, the defaults' in results/figure3_runs/)")
+                             "of issue #23 (results/stability_runs/<variant>/, the paper's in results/figure3_runs/); with --tables, "
+                             "then the tables")
     args = parser.parse_args(argv)
     if args.screen:
         for name, variants, seeds, panels in (("stability_screen", SCREEN, SCREEN_SEEDS, SCREEN_PANELS),
@@ -933,7 +980,8 @@ def main(argv=None) -> int:
             write_rows_csv(ROOT / "results" / f"{name}.csv", ["variant"] + FIGURE3_COLUMNS, rows)
             runs = len({(r["variant"], r["panel"], r["method"], r["seed"]) for r in rows})
             print(f"wrote results/{name}.csv: {runs} runs")
-        return 0
+        if not args.tables:
+            return 0
     if args.keep_metrics:
         src, dest = map(Path, args.keep_metrics)
         if not src.is_dir():

@@ -152,10 +152,15 @@ def test_memoryless_policy_ignores_and_keeps_the_hidden_state():
 
 
 def test_algorithm1_counts_simulator_steps_without_evaluation():
+    """Demos, random roll-outs, the clone's roll-outs (--clone-data, on by default) and one
+    policy collection per iteration."""
     cfg = rlil.preset("tiny", train=("car",), demos=("hexapod", "car"))
     demos, random, policy = 2 * 8 * 40, 8 * 40, 2 * 4 * 40
-    assert [rlil.sim_steps(cfg, i) for i in (0, 1, 2)] == [demos + random, demos + random + policy,
-                                                            demos + random + 2 * policy]
+    assert [rlil.sim_steps(cfg, i) for i in (0, 1, 2)] == [demos + random + policy, demos + random + 2 * policy,
+                                                            demos + random + 3 * policy]
+    paper = dataclasses.replace(cfg, clone_data=False)
+    assert [rlil.sim_steps(paper, i) for i in (0, 1, 2)] == [demos + random, demos + random + policy,
+                                                              demos + random + 2 * policy]
 
 
 # ----------------------------------------------------------------------------
