@@ -717,7 +717,7 @@ def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
     mean with its 95 % CI, the seeds that fall by more than FALL_M m between consecutive
     iterations from iteration 1 on (and the largest fall), exploitation (the largest mean over
     seeds of |model - simulator progress| over the first T steps, iterations >= 1), the area
-    under the curve, the variant − "paper" in it (same method, same seeds) and, on the RL+IL
+    under the curve, the variant − "paper" in it (same method, the variant's seeds) and, on the RL+IL
     line, RL+IL − RL in it, each with its 95 % CI, and the mean time per run."""
     iters = max(r["iteration"] for r in rows)
     lines = ["| variant | flags | panel | method | seeds | mean distance, iterations 0 → "
@@ -742,7 +742,9 @@ def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
                     continue
                 curve = ", ".join(f"{s['mean'][i]:.1f}" for i in sorted(s["mean"]))
                 same_runs = method == "RL" and rl_from == "paper"                 # nothing to compare
-                against = difference(s["auc"], paper[method]["auc"]) if method in paper and not same_runs else ""
+                paper_auc = [area_under_curve(c, iters) for seed, c in paper.get(method, {}).get("curves", {}).items()
+                             if seed in s["curves"]]                                    # the same seeds only
+                against = difference(s["auc"], paper_auc) if paper_auc and not same_runs else ""
                 gap = difference(s["auc"], stats["RL"]["auc"]) if method == "RL+IL" and "RL" in stats else ""
                 lines.append(
                     f"| {label} | {code} | ({panel}) {PANELS[panel][0]} | {method} | {len(s['auc'])} "

@@ -29,6 +29,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import sys
 import tempfile
 import time
@@ -241,6 +242,24 @@ def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
             (out / f).unlink()
 
 
+PENDING_CTRL_C = []   # a Ctrl-C that arrived inside pymunk, raised at the next log line or checkpoint
+
+
+def on_ctrl_c(signum, frame) -> None:
+    """SIGINT: KeyboardInterrupt, except inside pymunk, whose cffi callbacks (freeing bodies) would
+    print the exception and swallow it; there it waits in PENDING_CTRL_C for `raise_pending_ctrl_c`."""
+    if frame is not None and "pymunk" in frame.f_code.co_filename:
+        PENDING_CTRL_C.append(signum)
+        return
+    raise KeyboardInterrupt
+
+
+def raise_pending_ctrl_c() -> None:
+    if PENDING_CTRL_C:
+        PENDING_CTRL_C.clear()
+        raise KeyboardInterrupt
+
+
 def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
           cache_dir=rlil.demo_lib.DEFAULT_CACHE_DIR) -> list[dict]:
     """Run (or continue) Algorithm 1 (a Config) or PPO (a PPOConfig) with every output written
@@ -250,7 +269,11 @@ def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
     a UsageError, and a run that fails before its first checkpoint leaves no
     directory behind (one that existed before is left as it was).
     """
-    log = log or rlil.ProgressLog()
+    log_line = log or rlil.ProgressLog()
+
+    def log(message: str) -> None:
+        raise_pending_ctrl_c()
+        log_line(message)
     try:
         cfg = (ppo_lib if is_ppo(cfg) else rlil).validate_config(cfg)
     except ValueError as e:
@@ -272,6 +295,7 @@ def train(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
     durations, last = [], {"t": time.perf_counter(), "iteration": run.iteration if run else 0}
 
     def on_iteration(run) -> None:          # after iteration 0 and every later one (PPO: every evaluation)
+        raise_pending_ctrl_c()
         save_checkpoint(out, run)
         save_metrics(out, run.cfg, run.metrics)
         save_curve(out, run.cfg, run.metrics)
@@ -557,6 +581,8 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
     out = None                                    # the run directory a Ctrl-C reports on
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, on_ctrl_c)
     try:
         if args.sample_efficiency or args.figure3:
             return sweep(args)
