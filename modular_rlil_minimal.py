@@ -14,7 +14,7 @@ in Algorithm 1's order:
       il_loss                            lines 17-19, eqn. (IL_loss), + entropy penalty (Sec. III-J)
       rlil_loss                          line 19, eqn. (RLIL_loss)
       AdaptiveLearningRate               Sec. III-J: validation reward, revert, lower rate
-    collect_policy_rollouts  lines 27-29 policy data without and with correlated noise
+    add_policy_rollouts      lines 27-29 policy data without and with correlated noise (collect_policy_rollouts)
     decay_il_weight          line 30
     evaluate_iteration       not in Algorithm 1: Sec. IV's distance in 200 steps, per iteration
 
@@ -269,6 +269,15 @@ def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
     noise = sim2d.random_spline_actions(rng, n, graph.action_dim, steps, std=cfg.policy_noise_std)  # (n, T, A)
     noisy = sim2d.simulate(graph, PolicyActor(policy, design, n, noise), n, steps, seed=new_seed(rng))
     return Trajectories.from_episodes(clean) + Trajectories.from_episodes(noisy)
+
+
+def add_policy_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cfg: Config,
+                        rng: np.random.Generator) -> dict[str, Trajectories]:
+    """Algorithm 1 lines 28-29: T_train <- T_train U T_new for every training design; returns T_new."""
+    new_data = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in data}     # line 28
+    for design, traj in new_data.items():
+        data[design] = data[design] + traj                                         # line 29
+    return new_data
 
 
 # ----------------------------------------------------------------------------
@@ -705,9 +714,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         # -- lines 6-26: policy optimisation phase --
         phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)               # lines 7-26
         # -- lines 27-29: data collection --
-        new_data = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in designs}               # line 28
-        for design in designs:
-            data[design] = data[design] + new_data[design]                                         # line 29
+        new_data = add_policy_rollouts(policy, data, cfg, rng)                                     # lines 28-29
         if cfg.keep_better:                                                                        # not in the paper
             phase.update(improvement_check(policy, previous, new_data, run, cfg))
         run.il_weight = decay_il_weight(il_weight, cfg)                                            # line 30
@@ -744,10 +751,7 @@ def add_clone_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cfg
     iteration 1 is fitted where the cloned gait goes, not only on random flails (the data
     aggregation of DAgger, Ross et al. 2011, and of MBRL with on-policy data, Nagabandi et al.
     2018).  Costs one data collection.  Returns the clone's return for `improvement_check`."""
-    new = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in data}
-    for design, traj in new.items():
-        data[design] = data[design] + traj
-    return policy_return(new, cfg)
+    return policy_return(add_policy_rollouts(policy, data, cfg, rng), cfg)
 
 
 def policy_return(new_data: dict[str, Trajectories], cfg: Config) -> float:

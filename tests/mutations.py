@@ -55,7 +55,7 @@ MUTATIONS = [
      "PolicyActor(policy, design, n, noise)", "PolicyActor(policy, design, n)",
      "tests/test_rlil.py::test_noisy_policy_rollouts_add_correlated_noise_to_the_clean_policy"),
     ("line 29 a no-op: policy data collected, not added to T_train", "modular_rlil_minimal.py",
-     "data[design] = data[design] + new_data[design]", "pass",
+     "data[design] = data[design] + traj                                         # line 29", "pass",
      "tests/test_rlil.py::test_algorithm1_adds_the_policy_data_to_T_train_and_refits_the_model_on_it"),
     ("not in the paper: the clone's roll-outs never added (--clone-data)", "modular_rlil_minimal.py",
      "run.kept_return = add_clone_rollouts(policy, data, cfg, rng)", "run.kept_return = 0.0",
