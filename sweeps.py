@@ -669,10 +669,10 @@ SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost b
 
 
 def variant_dir(root: Path, variant: str) -> Path:
-    """Where a variant's committed metrics.json live: the paper's are issue #22's 10-seed Figure 3
-    (results/figure3_runs/), the confirmation's in results/stability_runs/defaults/ until it is complete."""
-    return root / "results" / ("figure3_runs" if variant == "paper" else
-                               "stability_runs/defaults" if variant.startswith("default") else f"stability_runs/{variant}")
+    """Where a variant's committed metrics.json live: the defaults' are the README's 10-seed Figure 3
+    (results/figure3_runs/), the others' (the paper's Algorithm 1, issue #22's sweep, included) in
+    results/stability_runs/<variant>/."""
+    return root / "results" / ("figure3_runs" if variant.startswith("default") else f"stability_runs/{variant}")
 
 
 def variant_rows(root: Path, variants: dict, seeds: int, panels: str) -> list[dict]:
@@ -865,6 +865,9 @@ def figure3_table(rows: list[dict]) -> str:
     return summarize_figure3(rows, iters, seeds, panels=panels)
 
 
+TRANSFER_DIRS = ("transfer", "generalist")   # results/<dir>/transfer.csv, written by train.py --transfer --out
+
+
 def regenerate_tables(root: Path) -> dict[Path, str]:
     """{results/NAME.md: its content regenerated from results/*.csv}.  figure3.csv and
     sample_efficiency.csv must exist; a CSV of ITERATION_TABLES that does not is skipped."""
@@ -890,6 +893,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         rows = read_rows_csv(results / "stability_confirm.csv")
         tables[results / "stability_targets.md"] = "\n".join(
             f"**{variant}**\n\n{summarize_targets(rows, variant)}" for variant in CONFIRM)
+    transfer_csvs = [results / d / "transfer.csv" for d in TRANSFER_DIRS if (results / d / "transfer.csv").exists()]
+    if transfer_csvs:                                   # issue #24: Figure 3's policies and the generalists
+        import transfer
+        tables[results / "transfer_summary.md"] = transfer.group_table(
+            [r for path in transfer_csvs for r in transfer.read_csv(path)])
     for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
             tables[results / f"{md}.md"] = summarize_iterations(
@@ -972,7 +980,7 @@ def main(argv=None) -> int:
                              "DEST/<run name>/ (what is committed of a sweep)")
     parser.add_argument("--screen", action="store_true",
                         help="write results/stability_screen.csv and stability_confirm.csv from the committed runs "
-                             "of issue #23 (results/stability_runs/<variant>/, the paper's in results/figure3_runs/); with --tables, "
+                             "of issue #23 (results/stability_runs/<variant>/, the defaults' in results/figure3_runs/); with --tables, "
                              "then the tables")
     args = parser.parse_args(argv)
     if args.screen:
