@@ -868,6 +868,23 @@ def figure3_table(rows: list[dict]) -> str:
 TRANSFER_DIRS = ("transfer", "generalist")   # results/<dir>/transfer.csv, written by train.py --transfer --out
 
 
+def generalist_table(root: Path) -> str:
+    """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
+    iteration where the four single-design RL+IL runs together have used at least the generalist's
+    simulator steps, and at their last iteration (steps from the committed metrics.json)."""
+    import transfer
+    results = root / "results"
+    generalist = transfer.read_csv(results / "generalist" / "transfer.csv")
+    saved = [json.loads(p.read_text()) for p in sorted((results / "generalist_runs").glob("*/metrics.json"))]
+    steps = {"generalist": max(m["iterations"][-1]["sim_steps"] for m in saved)}
+    single = [json.loads((results / "figure3_runs" / f"{design}-{'_'.join(demo)}-seed0" / "metrics.json").read_text())
+              ["iterations"] for design, demo in PANELS.values()]
+    total = [sum(its[k]["sim_steps"] for its in single) for k in range(len(single[0]))]
+    first = next((k for k, n in enumerate(total) if n >= steps["generalist"]), len(total) - 1)
+    steps.update({k: total[k] for k in dict.fromkeys((first, len(total) - 1))})
+    return transfer.generalist_table(generalist, read_rows_csv(results / "figure3.csv"), steps)
+
+
 def regenerate_tables(root: Path) -> dict[Path, str]:
     """{results/NAME.md: its content regenerated from results/*.csv}.  figure3.csv and
     sample_efficiency.csv must exist; a CSV of ITERATION_TABLES that does not is skipped."""
@@ -898,6 +915,8 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         import transfer
         tables[results / "transfer_summary.md"] = transfer.group_table(
             [r for path in transfer_csvs for r in transfer.read_csv(path)])
+    if (results / "generalist" / "transfer.csv").exists():
+        tables[results / "generalist.md"] = generalist_table(root)
     for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
             tables[results / f"{md}.md"] = summarize_iterations(

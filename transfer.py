@@ -197,6 +197,80 @@ def summary_markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def group_table(rows: list[dict]) -> str:
+    """Markdown, one line per kind of run (method, training and demo designs) over its seeds: the mean
+    distance on each Figure 3 design (* = trained on it; the first line: the demonstrator from the same
+    starts), and on the held-out designs the mean over
+    seeds of each run's mean ratio, with a 95 % bootstrap CI over seeds, and the share of designs at
+    GOOD_RATIO of their demonstrator."""
+    import sweeps                                      # sweeps imports train: not at the top
+    held_out = set(read_held_out())
+    order = list(sim2d.NAMED_DESIGNS.values())          # Figure 3's designs in their order, then any other
+    named = sorted({r["design"] for r in rows} - held_out, key=lambda c: (order.index(c) if c in order else 4, c))
+    kinds = list(dict.fromkeys((r["method"], r["trained"], r["demos"]) for r in rows))
+    lines = ["| method | trained on | demos | seeds | "
+             + " | ".join(f"{sim2d.design_name(c)} (m)" for c in named)
+             + " | held-out: mean ratio [95 % CI over seeds] | held-out: designs >= "
+             + f"{GOOD_RATIO} |", "|---|---|---|---|" + "---|" * (len(named) + 2)]
+    demo_m = [f"{np.mean([r['demo_distance_m'] for r in rows if r['design'] == c]):.2f}" for c in named]
+    lines.append("| the design's demonstrator | - | - | - | " + " | ".join(demo_m) + " | 1.00 | 100 % |")
+    for method, trained, demo in kinds:
+        group = [r for r in rows if (r["method"], r["trained"], r["demos"]) == (method, trained, demo)]
+        runs = list(dict.fromkeys(r["run"] for r in group))
+        cells = []
+        for c in named:
+            here = [r for r in group if r["design"] == c]
+            cells.append(f"{np.mean([r['distance_m'] for r in here]):.2f}" + "*" * here[0]["seen"])
+        ratio = np.array([np.mean([r["ratio"] for r in group if r["run"] == run and r["design"] in held_out])
+                          for run in runs])
+        good = np.mean([np.mean([r["ratio"] >= GOOD_RATIO for r in group if r["run"] == run and r["design"] in held_out])
+                        for run in runs])
+        lo, hi = sweeps.bootstrap_ci(ratio)
+        lines.append(f"| {method} | {trained} | {demo or '-'} | {len(runs)} | " + " | ".join(cells)
+                     + f" | {ratio.mean():.2f} [{lo:.2f}, {hi:.2f}] | {100 * good:.0f} % |")
+    return "\n".join(lines) + "\n"
+
+
+def generalist_table(generalist: list[dict], figure3: list[dict], steps: dict) -> str:
+    """Markdown: the runs trained on several designs at once (their transfer.csv rows) against Figure 3's
+    single-design RL+IL runs of the same seeds (figure3.csv rows), on each training design: mean
+    distance over seeds with a 95 % bootstrap CI.  `steps`: {"generalist": simulator steps of one
+    generalist at its last iteration, k: the single-design runs' steps at iteration k, summed over
+    the designs}; the single-design columns are the iterations named in it."""
+    import sweeps                                      # sweeps imports train: not at the top
+    seeds = sorted({r["seed"] for r in generalist})
+    last = max(r["iteration"] for r in generalist)
+    iters = sorted(k for k in steps if k != "generalist")
+
+    def fmt(x):
+        lo, hi = sweeps.bootstrap_ci(np.array(x))
+        return f"{np.mean(x):.2f} [{lo:.2f}, {hi:.2f}]"
+
+    lines = [f"| design | trained on all four, iteration {last} ({steps['generalist']:,} steps) (m) | "
+             + " | ".join(f"one design each, iteration {k} ({steps[k]:,} steps for the four) (m)" for k in iters)
+             + " |", "|---|---|" + "---|" * len(iters)]
+    for code in dict.fromkeys(r["design"] for r in generalist if r["seen"]):
+        name = sim2d.design_name(code)
+        mine = [r["distance_m"] for r in generalist if r["design"] == code]
+        cells = [fmt([r["distance_m"] for r in figure3 if r["train"] == name and r["method"] == "RL+IL"
+                      and r["iteration"] == k and r["seed"] in seeds]) for k in iters]
+        lines.append(f"| {name} | {fmt(mine)} | " + " | ".join(cells) + " |")
+    return f"{len(seeds)} seeds ({', '.join(map(str, seeds))}) each; simulator steps include the demonstrations\n\n" \
+        + "\n".join(lines) + "\n"
+
+
+def read_csv(path) -> list[dict]:
+    """transfer.csv's rows with their types back (write_csv's inverse)."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r["seen"] = r["seen"] == "True"
+        for k in ("distance_m", "demo_distance_m", "ratio"):
+            r[k] = float(r[k])
+        r["seed"], r["iteration"] = int(r["seed"]), int(r["iteration"])
+    return rows
+
+
 def write_csv(rows: list[dict], path) -> None:
     with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -4,8 +4,8 @@ Each entry below is a deliberate bug: a line of a stage file replaced by a
 broken one (a step skipped, a sign flipped, a term dropped) and the test that
 must fail because of it.  For each, the repository is copied to a scratch
 directory, the one line is changed there (never here), and only that test is
-run.  The table it prints (and writes to results/mutations.md, which the
-README shows) says whether every test went red.
+run.  The table it prints (and writes to results/mutations.md, which
+docs/cli.md shows) says whether every test went red.
 
     python tests/mutations.py            # all of them, about 5 minutes on 2 cores
     python tests/mutations.py --only 3   # one entry, by number

@@ -72,6 +72,34 @@ def test_summary_mean_ci_median_and_fraction_at_0_6():
     assert "| 2/3 (67 %) |" in transfer.summary_markdown(rows)
 
 
+def test_group_table_averages_seeds_marks_seen_and_uses_only_held_out_designs(tmp_path):
+    held = transfer.read_held_out()[:2]
+    rows = []
+    for seed, (car_m, ratios) in enumerate(((10.0, (0.2, 0.8)), (12.0, (1.0, 1.0)))):
+        for code, dist, ratio, seen in (("wnwwnw", car_m, car_m / 16, True), ("llllll", 1.0, 0.06, False),
+                                        *((h, 16 * r, r, False) for h, r in zip(held, ratios))):
+            rows.append({"run": f"r{seed}", "method": "RL", "seed": seed, "iteration": 5, "trained": "car",
+                         "demos": "", "design": code, "name": sim2d.design_name(code), "seen": seen,
+                         "distance_m": dist, "demo_distance_m": 16.0, "ratio": ratio})
+    transfer.write_csv(rows, tmp_path / "t.csv")
+    assert transfer.read_csv(tmp_path / "t.csv") == rows                       # the committed CSV reads back
+    line = transfer.group_table(rows).splitlines()[3]
+    # car 11 m (seen), hexapod 1 m; held-out mean ratio (0.5 + 1.0) / 2, not counting the hexapod's 0.06;
+    # designs at >= 0.6: 1 of 2 for seed 0, 2 of 2 for seed 1
+    assert line.startswith("| RL | car | - | 2 | 1.00 | 11.00* |") and "| 0.75 [" in line and line.endswith("| 75 % |")
+
+
+def test_generalist_table_compares_the_same_seeds_at_the_named_iterations():
+    generalist = [{"run": f"g{seed}", "method": "RL+IL", "seed": seed, "iteration": 5, "design": code, "seen": True,
+                   "distance_m": dist + seed} for seed in (0, 1) for code, dist in (("wnwwnw", 10.0), ("llllll", 4.0))]
+    figure3 = [{"train": train, "method": method, "seed": seed, "iteration": k, "distance_m": 100 * k + seed}
+               for train in ("car", "hexapod") for method in ("RL", "RL+IL") for seed in (0, 1, 2) for k in range(6)]
+    text = transfer.generalist_table(generalist, figure3, {"generalist": 99_600, 4: 106_800, 5: 119_600})
+    car = next(line for line in text.splitlines() if line.startswith("| car |"))
+    assert car.startswith("| car | 10.50 [10.00, 11.00] | 400.50 [400.00, 401.00] | 500.50 [500.00, 501.00] |")
+    assert "(99,600 steps)" in text and "iteration 4 (106,800 steps for the four)" in text and text.startswith("2 seeds (0, 1)")
+
+
 def test_held_out_file_is_what_the_generator_draws_and_no_figure3_design():
     assert transfer.HELD_OUT_FILE.read_text() == transfer.held_out_text()
     codes = transfer.read_held_out()
