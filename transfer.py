@@ -200,9 +200,8 @@ def summary_markdown(rows: list[dict]) -> str:
 def group_table(rows: list[dict]) -> str:
     """Markdown, one line per kind of run (method, training and demo designs) over its seeds: the mean
     distance on each Figure 3 design (* = trained on it; the first line: the demonstrator from the same
-    starts), and on the held-out designs the mean over
-    seeds of each run's mean ratio, with a 95 % bootstrap CI over seeds, and the share of designs at
-    GOOD_RATIO of their demonstrator."""
+    starts), and on the held-out designs the mean over seeds of each run's mean ratio, with a 95 %
+    bootstrap CI over seeds, and the share of designs at GOOD_RATIO of their demonstrator."""
     import sweeps                                      # sweeps imports train: not at the top
     held_out = set(read_held_out())
     order = list(sim2d.NAMED_DESIGNS.values())          # Figure 3's designs in their order, then any other
@@ -221,10 +220,9 @@ def group_table(rows: list[dict]) -> str:
         for c in named:
             here = [r for r in group if r["design"] == c]
             cells.append(f"{np.mean([r['distance_m'] for r in here]):.2f}" + "*" * here[0]["seen"])
-        ratio = np.array([np.mean([r["ratio"] for r in group if r["run"] == run and r["design"] in held_out])
-                          for run in runs])
-        good = np.mean([np.mean([r["ratio"] >= GOOD_RATIO for r in group if r["run"] == run and r["design"] in held_out])
-                        for run in runs])
+        per_run = np.array([[r["ratio"] for r in group if r["run"] == run and r["design"] in held_out]
+                            for run in runs])                   # [run, held-out design]
+        ratio, good = per_run.mean(axis=1), (per_run >= GOOD_RATIO).mean()
         lo, hi = sweeps.bootstrap_ci(ratio)
         lines.append(f"| {method} | {trained} | {demo or '-'} | {len(runs)} | " + " | ".join(cells)
                      + f" | {ratio.mean():.2f} [{lo:.2f}, {hi:.2f}] | {100 * good:.0f} % |")
@@ -246,10 +244,11 @@ def generalist_table(generalist: list[dict], figure3: list[dict], steps: dict) -
         lo, hi = sweeps.bootstrap_ci(np.array(x))
         return f"{np.mean(x):.2f} [{lo:.2f}, {hi:.2f}]"
 
-    lines = [f"| design | trained on all four, iteration {last} ({steps['generalist']:,} steps) (m) | "
-             + " | ".join(f"one design each, iteration {k} ({steps[k]:,} steps for the four) (m)" for k in iters)
-             + " |", "|---|---|" + "---|" * len(iters)]
-    for code in dict.fromkeys(r["design"] for r in generalist if r["seen"]):
+    designs = list(dict.fromkeys(r["design"] for r in generalist if r["seen"]))
+    lines = [f"| design | trained on all {len(designs)}, iteration {last} ({steps['generalist']:,} steps) (m) | "
+             + " | ".join(f"one design each, iteration {k} ({steps[k]:,} steps for the {len(designs)}) (m)"
+                          for k in iters) + " |", "|---|---|" + "---|" * len(iters)]
+    for code in designs:
         name = sim2d.design_name(code)
         mine = [r["distance_m"] for r in generalist if r["design"] == code]
         cells = [fmt([r["distance_m"] for r in figure3 if r["train"] == name and r["method"] == "RL+IL"

@@ -97,7 +97,7 @@ def test_generalist_table_compares_the_same_seeds_at_the_named_iterations():
     text = transfer.generalist_table(generalist, figure3, {"generalist": 99_600, 4: 106_800, 5: 119_600})
     car = next(line for line in text.splitlines() if line.startswith("| car |"))
     assert car.startswith("| car | 10.50 [10.00, 11.00] | 400.50 [400.00, 401.00] | 500.50 [500.00, 501.00] |")
-    assert "(99,600 steps)" in text and "iteration 4 (106,800 steps for the four)" in text and text.startswith("2 seeds (0, 1)")
+    assert "(99,600 steps)" in text and "iteration 4 (106,800 steps for the 2)" in text and text.startswith("2 seeds (0, 1)")
 
 
 def test_held_out_file_is_what_the_generator_draws_and_no_figure3_design():
