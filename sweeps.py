@@ -508,26 +508,26 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
 # Sample efficiency (not in the paper): Algorithm 1 against PPO per simulator step and per second
 # ----------------------------------------------------------------------------
 SAMPLE_EFFICIENCY = {"hexapod": PANELS["a"][1], "leg_none_wheel": PANELS["d"][1]}   # design: Figure 3's demos
-THRESHOLDS_M = (5.0, 10.0)
+SAMPLE_METHODS = ("RL+IL", "RL", "PPO", "PPO+IL")     # PPO+IL: PPO with the same demos (issue #24)
+THRESHOLDS_M = (5.0, 10.0, 15.0)
 SAMPLE_COLUMNS = ["train", "method", "seed", "iteration", "sim_steps", "seconds", "distance_m"]
 
 
 def sample_efficiency_runs(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig, seeds: int,
                            jobs: int) -> list[dict]:
-    """One entry per run: hexapod and leg_none_wheel x {RL+IL, RL, PPO} x seeds, with `base`'s and
-    `base_ppo`'s budgets; one torch thread per run when several run at once."""
+    """One entry per run: hexapod and leg_none_wheel x SAMPLE_METHODS x seeds, with `base`'s and
+    `base_ppo`'s budgets (the demos: Figure 3's for the design, for RL+IL and PPO+IL); one torch
+    thread per run when several run at once."""
     runs = []
     for design, demos in SAMPLE_EFFICIENCY.items():
         code = (sim2d.parse_design(design),)
-        for method in ("RL+IL", "RL", "PPO"):
+        for method in SAMPLE_METHODS:
+            with_demos = tuple(sim2d.parse_design(d) for d in demos) if method.endswith("+IL") else ()
+            ppo = method.startswith("PPO")
             for seed in range(seeds):
-                if method == "PPO":
-                    cfg = dataclasses.replace(base_ppo, train=code, seed=seed, demos=(),   # plain PPO
-                                              threads=1 if jobs > 1 else base_ppo.threads)
-                else:
-                    cfg = dataclasses.replace(base, train=code, seed=seed, threads=1 if jobs > 1 else base.threads,
-                                              demos=tuple(sim2d.parse_design(d) for d in demos) if method == "RL+IL" else ())
-                last = ppo_lib.iterations(cfg) if method == "PPO" else cfg.iters
+                cfg = dataclasses.replace(base_ppo if ppo else base, train=code, seed=seed, demos=with_demos,
+                                          threads=1 if jobs > 1 else (base_ppo if ppo else base).threads)
+                last = ppo_lib.iterations(cfg) if ppo else cfg.iters
                 runs.append({"train": design, "method": method, "seed": seed, "dir": out / run_name(cfg),
                              "args": config_args(cfg), "last": last})
     return runs
@@ -563,12 +563,12 @@ def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
 
 def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = ()) -> str:
     """Markdown: per design and method, the simulator steps and seconds at which the mean over seeds
-    first reaches 5 m and 10 m in 200 steps, and where each ends."""
+    first reaches each of THRESHOLDS_M in 200 steps, and where each ends."""
     head = " | ".join(f"{t:g} m: steps | {t:g} m: seconds" for t in THRESHOLDS_M)
     lines = [f"| design | method | seeds | {head} | final steps | final seconds | final mean (m) | final min-max (m) |",
              "|---|---|---|" + "---|" * (2 * len(THRESHOLDS_M) + 4)]
     for design in SAMPLE_EFFICIENCY:
-        for method in ("RL+IL", "RL", "PPO"):
+        for method in SAMPLE_METHODS:
             curve = mean_curve(rows, design, method)
             if not curve:
                 lines.append(f"| {design} | {method} | 0 of {seeds} |" + " |" * (2 * len(THRESHOLDS_M) + 4))
@@ -603,7 +603,7 @@ def write_sample_efficiency(out: Path, rows: list[dict], problems: list[str] = (
             if not curve:
                 continue
             n = len(curve[-1][2])
-            label = (f"{method}" + (f" ({' + '.join(demos)} demos)" if method == "RL+IL" else "")
+            label = (f"{method}" + (f" ({' + '.join(demos)} demos)" if method.endswith("+IL") else "")
                      + f", {n} seed{'s' * (n > 1)}")
             for ax, k in zip(row_axes, (0, 1)):
                 x = [c[k] for c in curve]

@@ -12,7 +12,7 @@ CPU, minutes (README, Quick start); Ctrl-C keeps what finished and prints the co
     python train.py --eval runs/leg_none_wheel-hexapod_car-seed0 --design hexapod --gif h.gif
     python train.py --transfer runs/leg_none_wheel-hexapod_car-seed0 runs/car-rl-seed0   # transfer.py
     python train.py --compare runs/car-rl-seed0 runs/car-hexapod-seed0 --gif rl_vs_rlil.gif
-    python train.py --sample-efficiency                            # RL, RL+IL and PPO per simulator step
+    python train.py --sample-efficiency                            # RL, RL+IL, PPO and PPO+IL per simulator step
 
 A run directory holds metrics.json, metrics.csv, curve.png, policy.pt (config
 inside), checkpoint.pt (everything a resume needs) and rollout.gif.  An existing
@@ -462,7 +462,7 @@ def build_parser() -> sim2d.CliParser:
                    help="rlil: Algorithm 1 (RL+IL with --demos, else RL); ppo: the model-free baseline "
                         "(ppo_minimal.py) on the same modular policy")
     p.add_argument("--sample-efficiency", action="store_true",
-                   help="run RL, RL+IL (Figure 3's demos) and PPO on hexapod and leg_none_wheel x seeds and plot "
+                   help="run RL, RL+IL, PPO and PPO+IL (Figure 3's demos) on hexapod and leg_none_wheel x seeds and plot "
                         "distance against simulator steps and seconds")
     group = p.add_argument_group("Algorithm 1 (modular_rlil_minimal.Config; defaults: the README's main command)")
     default, helps = rlil.Config(), {**field_help(rlil.Config), **field_help(GNNConfig)}

@@ -329,13 +329,15 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
     and 10 m, the final mean and range."""
     base, base_ppo = rlil.preset("tiny", iters=1), smoke()
     runs = sweeps.sample_efficiency_runs(tmp_path, base, base_ppo, seeds=2, jobs=2)
-    assert len(runs) == 2 * 3 * 2 and len({r["dir"] for r in runs}) == 12
+    assert len(runs) == 2 * 4 * 2 and len({r["dir"] for r in runs}) == 16
     assert {(r["train"], r["method"]) for r in runs} == {(d, m) for d in ("hexapod", "leg_none_wheel")
-                                                         for m in ("RL+IL", "RL", "PPO")}
-    lnw_il = next(r for r in runs if r["train"] == "leg_none_wheel" and r["method"] == "RL+IL")
-    assert lnw_il["args"][lnw_il["args"].index("--demos") + 1:][:2] == ["llllll", "wnwwnw"]
+                                                         for m in ("RL+IL", "RL", "PPO", "PPO+IL")}
+    for method in ("RL+IL", "PPO+IL"):                  # Figure 3's demos; PPO and RL have none
+        lnw = next(r for r in runs if r["train"] == "leg_none_wheel" and r["method"] == method)
+        assert lnw["args"][lnw["args"].index("--demos") + 1:][:2] == ["llllll", "wnwwnw"]
+    assert not any("--demos" in r["args"] for r in runs if r["method"] in ("RL", "PPO"))
     for r in runs:
-        cfg = base_ppo if r["method"] == "PPO" else base
+        cfg = {"PPO": base_ppo, "PPO+IL": dataclasses.replace(base_ppo, demos=("llllll",))}.get(r["method"], base)
         r["dir"].mkdir(parents=True)
         rows = [{"iteration": i, "sim_steps": 1000 * (i + 1), "seconds": 10.0,
                  "distance_m": 4.0 * i + r["seed"] + (6.0 if r["method"] == "PPO" else 0.0)}
@@ -348,6 +350,8 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
     assert "hexapod,PPO,1,2,3000,30.0,15.0" in lines
     table = (tmp_path / "sample_efficiency.md").read_text()
     # RL: seeds 0 and 1 give means 0.5, 4.5 m: 5 m not reached; PPO: 6.5, 10.5, 14.5 m
-    assert "| hexapod | RL | 2 of 2 | not reached |  | not reached |  | 2,000 | 20 | 4.50 | 4.00 - 5.00 |" in table
-    assert "| hexapod | PPO | 2 of 2 | 1,000 | 10 | 2,000 | 20 | 3,000 | 30 | 14.50 | 14.00 - 15.00 |" in table
+    assert "| hexapod | RL | 2 of 2 | not reached |  | not reached |  | not reached |  | 2,000 | 20 | 4.50 | 4.00 - 5.00 |" in table
+    assert "| hexapod | PPO | 2 of 2 | 1,000 | 10 | 2,000 | 20 | not reached |  | 3,000 | 30 | 14.50 | 14.00 - 15.00 |" in table
+    # PPO+IL: 0.5, 4.5, 8.5 m
+    assert "| hexapod | PPO+IL | 2 of 2 | 3,000 | 30 | not reached |  | not reached |  | 3,000 | 30 | 8.50 | 8.00 - 9.00 |" in table
     assert (tmp_path / "sample_efficiency.png").stat().st_size > 10_000
