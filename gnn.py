@@ -99,16 +99,6 @@ def gaussian_entropy(log_std) -> torch.Tensor:
     return (log_std + 0.5 * math.log(2 * math.pi * math.e)).sum(-1)
 
 
-def gaussian_kl(mean_p, log_std_p, mean_q, log_std_q) -> torch.Tensor:
-    """KL(p || q) of two diagonal Gaussians, summed over the last (action) dim: (...,).
-
-    Per dim: log std_q - log std_p + (std_p^2 + (mean_p - mean_q)^2) / (2 std_q^2) - 1/2.
-    """
-    var_q = torch.exp(2 * log_std_q)
-    return (log_std_q - log_std_p + (torch.exp(2 * log_std_p) + (mean_p - mean_q) ** 2) / (2 * var_q)
-            - 0.5).sum(-1)
-
-
 def node_types(graph) -> list[str]:
     """The module types a design has, in node order: "body" first, then "leg" and/or "wheel"."""
     return ["body"] + [k for k, n in (("leg", graph.n_legs), ("wheel", graph.n_wheels)) if n]

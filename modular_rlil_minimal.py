@@ -22,10 +22,10 @@ Not in the paper, each behind a switch and kept together in the last section of
 this file.  On by default (docs/stability.md measured them): the first model
 also sees the clone's roll-outs (`--clone-data`, `add_clone_rollouts`) and an
 improvement check that keeps the previous policy when the new one does worse in
-the simulator (`--keep-better`, `improvement_check`).  Off by default: an
-ensemble of models with held-out members (`--ensemble`, `--held-out-models`)
-and a soft trust region (`--trust-region`).  `--clone-data off --keep-better
-off` is the paper's Algorithm 1.
+the simulator (`--keep-better`, `improvement_check`).  `--clone-data off
+--keep-better off` is the paper's Algorithm 1.  Switches that were measured and
+did not help (an ensemble of models, a trust region) have left the code; their
+rows are in docs/ablations.md with the last commit that has them.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
@@ -44,7 +44,7 @@ import torch
 
 import demos as demo_lib
 import sim2d
-from gnn import GNNConfig, ModularModel, ModularPolicy, gaussian_kl
+from gnn import GNNConfig, ModularModel, ModularPolicy
 
 
 # ----------------------------------------------------------------------------
@@ -101,11 +101,6 @@ class Config:
     eval_episodes: int = 8           # perturbed starts per evaluation
     eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
     # Not in the paper (the last section of this file); off = the paper
-    ensemble: int = 1                # models trained side by side on T_train (PETS, ME-TRPO); 1 = the paper
-    held_out_models: int = 0         # ensemble members the policy never trains through; the validation
-                                     # reward of Sec. III-J is judged on them (ME-TRPO); below ensemble
-    trust_region: float = 0.0        # weight of a penalty on KL(previous iteration's policy || policy)
-                                     # on windows of T_train (TRPO, PPO's KL penalty); 0 = the paper; 0-10
     clone_data: bool = True          # the first model also fits the cloned policy's roll-outs, collected
                                      # after line 1 as lines 28-29 collect (no effect without demos); off = the paper
     keep_better: bool = True         # after lines 28-29, keep the previous policy when the new one's noiseless
@@ -173,7 +168,7 @@ def design_codes(field_name: str, designs) -> tuple[str, ...]:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
-    "buffer_size": 2, "rounds": 0, "held_out_models": 0, "trust_region": 0.0, "improvement_margin": 0.0}
+    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -194,9 +189,6 @@ def validate_config(cfg: Config) -> Config:
         raise ValueError(f"batch ({cfg.batch}) must not exceed buffer_size ({cfg.buffer_size}): a batch draws from B")
     if cfg.il_window > cfg.demo_steps:
         raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
-    if cfg.held_out_models >= cfg.ensemble:
-        raise ValueError(f"held_out_models ({cfg.held_out_models}) must be below ensemble ({cfg.ensemble}): "
-                         "the policy needs a model to train through")
     return cfg
 
 
@@ -291,35 +283,31 @@ def model_loss(model: ModularModel, design: str, transitions, n: int, rng: np.ra
     return model.loss(s[i], a[i], s_next[i], sim2d.design_graph(design))
 
 
-def train_model(model, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
+def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
                 first: bool) -> float:
     """Algorithm 1 line 5 (Sec. III-C): supervised regression of the state change on T_train.
 
     At the first iteration the input and output normalisation is fitted to
     T_train and the model takes `model_steps` Adam steps; later iterations
     fine-tune it for `finetune_steps`.  Each step sums the loss of a mini-batch
-    per training design (and per member of an `Ensemble`, each its own
-    mini-batch).  Returns the mean loss (normalised MSE, per member) over the
-    last 10 % of the steps (NaN if no steps).
+    per training design.  Returns the mean loss (normalised MSE) over the last
+    10 % of the steps (NaN if no steps).
     """
     flat = {d: traj.transitions() for d, traj in data.items()}             # (E*T, S), (E*T, A), (E*T, S)
-    models = members(model)                                                 # [model] in the paper
     if first:
-        for m in models:
-            m.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
+        model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
     steps = cfg.model_steps if first else cfg.finetune_steps
     opt = torch.optim.Adam(model.parameters(), lr=cfg.model_lr, foreach=True)   # foreach: one multi-tensor
     # update of all parameters instead of a loop over them; the same numbers, less per-step overhead
     losses = []
     for _ in range(steps):
         loss = 0.0
-        for m in models:
-            for design in data:
-                loss = loss + model_loss(m, design, flat[design], cfg.model_batch, rng)
+        for design in data:
+            loss = loss + model_loss(model, design, flat[design], cfg.model_batch, rng)
         opt.zero_grad()
         loss.backward()
         opt.step()
-        losses.append(loss.item() / len(models))
+        losses.append(loss.item())
     return float(np.mean(losses[-max(1, steps // 10):])) if losses else float("nan")
 
 
@@ -441,15 +429,14 @@ def refresh_buffer(buffer: Buffer, policy, model, data: Trajectories, cfg: Confi
 @torch.no_grad()
 def validation_reward(policy, model, val_states: dict, cfg: Config) -> float:
     """Sec. III-J: net reward of T deterministic model steps from a fixed, large set of states,
-    summed over designs (with an `Ensemble`, the mean over its `validation_models`)."""
-    total, judges = 0.0, validation_models(model)                          # [model] in the paper
-    for m in judges:
-        for design, s0 in val_states.items():
-            graph = sim2d.design_graph(design)
-            R, _, _ = rollout(policy, m, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon,
-                              deterministic=True)
-            total += R.mean().item()
-    return total / len(judges)
+    summed over designs."""
+    total = 0.0
+    for design, s0 in val_states.items():
+        graph = sim2d.design_graph(design)
+        R, _, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon,
+                          deterministic=True)
+        total += R.mean().item()
+    return total
 
 
 class AdaptiveLearningRate:
@@ -509,7 +496,6 @@ def optimize_policy(policy: ModularPolicy, model, data: dict[str, Trajectories],
     model.requires_grad_(False)                                                   # frozen in this phase
     buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}                # line 7
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
-    anchor = copy.deepcopy(policy).requires_grad_(False) if cfg.trust_region else None  # not in the paper
     opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr, foreach=True)
     lr_rule = AdaptiveLearningRate(policy, opt, validation_reward(policy, model, val_states, cfg), cfg.lr_drop)
     rl_values, il_values = [], []
@@ -520,8 +506,6 @@ def optimize_policy(policy: ModularPolicy, model, data: dict[str, Trajectories],
             loss_il, entropy = il_loss(policy, demo_data, cfg, rng)                                # line 18
             loss = rlil_loss(loss_rl, loss_il + cfg.entropy_weight * entropy, il_weight)          # line 19
             il_values.append(loss_il.item())
-        if anchor is not None:                                                     # not in the paper
-            loss = loss + cfg.trust_region * trust_region_loss(policy, anchor, data, cfg, rng)
         if not gradient_step(opt, loss, policy, cfg.grad_clip):                                    # line 21
             lr_rule.revert()                                  # a non-finite loss or gradient: never step on it
             continue
@@ -556,7 +540,7 @@ def model_bias(policy: ModularPolicy, model, design: str, run: sim2d.Episodes, c
     """How far the model flatters the policy, from the evaluation starts, over the first T steps:
 
     model_progress_m: progress (m) predicted by rolling the policy out in the model
-      (deterministic; with an `Ensemble`, the mean over its members);
+      (deterministic);
     sim_progress_m: progress measured in the simulator over the same steps;
     model_path_error_m: |x~_T - x_T| when the model replays the simulator's own
       actions open-loop: the model's error along the policy's simulated path.
@@ -567,17 +551,14 @@ def model_bias(policy: ModularPolicy, model, design: str, run: sim2d.Episodes, c
     graph, T = sim2d.design_graph(design), cfg.horizon
     states = torch.as_tensor(run.states, dtype=torch.float32)                     # (n, steps + 1, S)
     actions = torch.as_tensor(run.actions, dtype=torch.float32)                   # (n, steps, A)
-    s0, predicted, replayed = states[:, 0], [], []
-    for m in members(model):                                                      # [model] in the paper
-        _, s_T, _ = rollout(policy, m, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
-        predicted.append((s_T[:, 0] - s0[:, 0]).mean())
-        s, f = s0, m.wire(graph)
-        for t in range(T):
-            s = f(s, actions[:, t])
-        replayed.append((s[:, 0] - states[:, T, 0]).abs().mean())
-    return {"model_progress_m": float(torch.stack(predicted).mean()),
+    s0 = states[:, 0]
+    _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
+    s, f = s0, model.wire(graph)
+    for t in range(T):                                          # the simulator's actions, open loop
+        s = f(s, actions[:, t])
+    return {"model_progress_m": float((s_T[:, 0] - s0[:, 0]).mean()),
             "sim_progress_m": float((states[:, T, 0] - s0[:, 0]).mean()),
-            "model_path_error_m": float(torch.stack(replayed).mean())}
+            "model_path_error_m": float((s[:, 0] - states[:, T, 0]).abs().mean())}
 
 
 def sim_steps(cfg: Config, i: int) -> int:
@@ -619,7 +600,7 @@ class Run:
 
     cfg: Config
     policy: ModularPolicy
-    model: torch.nn.Module           # f~_phi: a ModularModel (an `Ensemble` with --ensemble > 1)
+    model: ModularModel              # f~_phi
     data: dict                       # T_train: design code -> Trajectories
     il_weight: float                 # lambda for the next iteration
     rng: np.random.Generator
@@ -688,7 +669,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
     if run is None:
         t0 = time.perf_counter()
         rng = seed_everything(cfg.seed)
-        policy, model = ModularPolicy(cfg.gnn), make_model(cfg)
+        policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
         if demo_data and cfg.bc_steps:                                                             # line 1
             log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
                 f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
@@ -736,8 +717,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 
 # ----------------------------------------------------------------------------
-# Not in the paper: switches against model error.  clone_data and keep_better are on
-# by default (docs/stability.md), the ensemble and the trust region off (docs/ablations.md)
+# Not in the paper: switches against model error, on by default (docs/stability.md)
 # ----------------------------------------------------------------------------
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""
@@ -779,82 +759,3 @@ def improvement_check(policy: ModularPolicy, previous: dict, new_data: dict[str,
     else:
         policy.load_state_dict(previous)
     return {"policy_return": value, "kept_new": keep}
-
-
-def make_model(cfg: Config):
-    """f~_phi: one ModularModel (the paper), or an `Ensemble` of `cfg.ensemble` of them."""
-    return ModularModel(cfg.gnn) if cfg.ensemble == 1 else Ensemble(cfg)
-
-
-def members(model) -> list:
-    """The models trained on T_train: [model], or an `Ensemble`'s members."""
-    return list(model.members) if isinstance(model, Ensemble) else [model]
-
-
-def validation_models(model) -> list:
-    """The models the validation reward (Sec. III-J) is judged on: [model], or an `Ensemble`'s
-    held-out members (its training members when none is held out)."""
-    if not isinstance(model, Ensemble):
-        return [model]
-    return list(model.members[model.n_train:]) or list(model.members[:model.n_train])
-
-
-class Ensemble(torch.nn.Module):
-    """f~_phi as `cfg.ensemble` modular models trained side by side on T_train, each on its own
-    mini-batches (PETS, Chua et al. 2018; ME-TRPO, Kurutach et al. 2018).
-
-    `wire(graph)` is the model the policy trains through: calling it steps a
-    random one of the first `ensemble - held_out_models` members at every step
-    (PETS, MBPO), so no single member's error can be exploited for a whole
-    roll-out.  The last `held_out_models` members are never trained through;
-    `validation_models` returns them (ME-TRPO).
-    """
-
-    def __init__(self, cfg: Config):
-        super().__init__()
-        self.members = torch.nn.ModuleList(ModularModel(cfg.gnn) for _ in range(cfg.ensemble))
-        self.n_train = cfg.ensemble - cfg.held_out_models
-
-    def wire(self, graph) -> "EnsembleOnDesign":
-        return EnsembleOnDesign(self, graph)
-
-
-class EnsembleOnDesign:
-    """The ensemble wired for one design's roll-outs: every member's gnn.ModelOnDesign."""
-
-    def __init__(self, ensemble: Ensemble, graph):
-        self.members, self.n_train = [m.wire(graph) for m in ensemble.members], ensemble.n_train
-
-    def __call__(self, s, a):                              # s~' = f~(s~, a): (B, S)
-        k = 0 if self.n_train == 1 else int(torch.randint(self.n_train, ()))   # a random training member
-        return self.members[k](s, a)
-
-
-def trust_region_loss(policy: ModularPolicy, anchor: ModularPolicy, data: dict[str, Trajectories],
-                      cfg: Config, rng: np.random.Generator) -> torch.Tensor:
-    """KL(pi_anchor || pi_theta), the anchor being the policy at the start of this policy phase
-    (the previous iteration's policy), on the observations of `il_batch` windows of `il_window`
-    steps of T_train per training design, both policies run from zero hidden states.  Mean over
-    windows and steps, summed over designs.  Penalising it keeps each iteration's policy near the
-    one whose data T_train holds (a soft trust region: TRPO's constraint, PPO's KL penalty,
-    Schulman et al. 2015, 2017), so the RL term cannot walk far into states the model has not seen."""
-    loss = 0.0
-    for design, traj in data.items():
-        graph = sim2d.design_graph(design)
-        episodes, steps = traj.actions.shape[:2]
-        e = torch.from_numpy(rng.integers(episodes, size=cfg.il_batch))
-        t0 = torch.from_numpy(rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch))
-        obs = sim2d.observe(traj.states[e[:, None], t0[:, None] + torch.arange(cfg.il_window)], graph)
-        h = h_anchor = policy.initial_hidden(cfg.il_batch, graph)                   # (nodes, batch, H)
-        pi = policy.wire(graph)
-        with torch.no_grad():
-            pi_anchor = anchor.wire(graph)
-        kl = 0.0
-        for t in range(cfg.il_window):
-            o = {k: v[:, t] for k, v in obs.items()}                                # (batch, ...)
-            mean, log_std, h = pi.step(o, h)
-            with torch.no_grad():
-                mean_a, log_std_a, h_anchor = pi_anchor.step(o, h_anchor)
-            kl = kl + gaussian_kl(mean_a, log_std_a, mean, log_std).mean()
-        loss = loss + kl / cfg.il_window
-    return loss

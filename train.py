@@ -41,7 +41,7 @@ import torch
 import modular_rlil_minimal as rlil
 import ppo_minimal as ppo_lib
 import sim2d
-from gnn import GNNConfig, ModularPolicy
+from gnn import GNNConfig, ModularModel, ModularPolicy
 
 LAUNCHERS = ("local", "ray")      # how a sweep runs its runs (sweeps.launch_runs)
 OUTPUTS = ("metrics.json", "metrics.csv", "curve.png", "policy.pt", "checkpoint.pt", "rollout.gif")
@@ -95,9 +95,16 @@ def config_to_dict(cfg) -> dict:
     return {**dataclasses.asdict(cfg), **({"method": "ppo"} if is_ppo(cfg) else {}), "versions": versions()}
 
 
+# Settings that left the code (docs/ablations.md, Removed mechanisms) and the value at which the
+# code they switched on did nothing: a run written with that value is today's algorithm.
+REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0}
+
+
 def config_from_dict(d: dict):
-    """The config `config_to_dict` wrote; a UsageError naming settings this version lacks."""
-    d = {k: v for k, v in d.items() if k not in ("versions", "method")}
+    """The config `config_to_dict` wrote; a UsageError naming settings this version lacks (a
+    removed setting at its off value, REMOVED_AT_OFF, is dropped: the run did not use it)."""
+    d = {k: v for k, v in d.items()
+         if k not in ("versions", "method") and not (k in REMOVED_AT_OFF and v == REMOVED_AT_OFF[k])}
     cls = ppo_lib.PPOConfig if "env_steps" in d else rlil.Config       # PPO's are written with "method": "ppo"
     unknown = sorted(set(d) - {f.name for f in dataclasses.fields(cls)})
     unknown += sorted(f"gnn.{k}" for k in set(d["gnn"]) - {f.name for f in dataclasses.fields(GNNConfig)})
@@ -201,7 +208,7 @@ def restore_run(ckpt: dict, cfg):
         run.return_scale = ppo_lib.ReturnScale(**ckpt["return_scale"])
         run.rng = rlil.Run.rng_from_state(ckpt["rng"])
         return run
-    policy, model = ModularPolicy(cfg.gnn), rlil.make_model(cfg)
+    policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
