@@ -665,6 +665,12 @@ CONFIRM = {  # the 10-seed Figure 3 with the chosen defaults against the paper's
     "paper": SCREEN["paper"],
     "default (clone_data+keep_better)": ((), None),
 }
+DEFAULT = "default (clone_data+keep_better)"        # the chosen defaults: results/figure3_runs/
+SCREEN_OVER_DEFAULTS = {  # the later candidates, each over the chosen defaults and against them, same seeds
+    DEFAULT: ((), None),
+    "contact_features": (("--gnn-contact-features", "on"), None),
+    "critic": (("--critic", "on"), None),
+}
 SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost between consecutive iterations
 
 
@@ -712,17 +718,17 @@ def difference(x, y) -> str:
     return f"{np.mean(x) - np.mean(y):.2f} {interval(bootstrap_diff_ci(x, y))}" if len(x) and len(y) else ""
 
 
-def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
+def summarize_variants(rows: list[dict], variants: dict = SCREEN, baseline: str = "paper") -> str:
     """Markdown, one line per variant, panel and method: mean distance per iteration, the final
     mean with its 95 % CI, the seeds that fall by more than FALL_M m between consecutive
     iterations from iteration 1 on (and the largest fall), exploitation (the largest mean over
     seeds of |model - simulator progress| over the first T steps, iterations >= 1), the area
-    under the curve, the variant − "paper" in it (same method, the variant's seeds) and, on the RL+IL
+    under the curve, the variant − `baseline` in it (same method, the variant's seeds) and, on the RL+IL
     line, RL+IL − RL in it, each with its 95 % CI, and the mean time per run."""
     iters = max(r["iteration"] for r in rows)
     lines = ["| variant | flags | panel | method | seeds | mean distance, iterations 0 → "
              f"{iters} (m) | final [95 % CI] (m) | seeds falling > {FALL_M:.0f} m (largest fall, m) "
-             "| exploitation (m) | area under the curve (m) | − paper in area [95 % CI] (m) "
+             f"| exploitation (m) | area under the curve (m) | − {baseline.split(' (')[0]} in area [95 % CI] (m) "
              "| RL+IL − RL in area [95 % CI] (m) | time per run (s) |",
              "|---" * 13 + "|"]
     panels = [p for p in PANELS if any(r["panel"] == p for r in rows)]
@@ -730,7 +736,7 @@ def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
         code = f"`{' '.join(flags)}`" if flags else ""
         for panel in panels:
             stats = variant_stats(rows, variant, rl_from, panel, iters)
-            paper = variant_stats(rows, "paper", None, panel, iters) if variant != "paper" else {}
+            paper = variant_stats(rows, baseline, None, panel, iters) if variant != baseline else {}
             for method in ("RL+IL", "RL"):
                 if method not in stats:
                     continue
@@ -741,7 +747,7 @@ def summarize_variants(rows: list[dict], variants: dict = SCREEN) -> str:
                                  f"{len(s['curves'])} | unfinished |" + " |" * 7)
                     continue
                 curve = ", ".join(f"{s['mean'][i]:.1f}" for i in sorted(s["mean"]))
-                same_runs = method == "RL" and rl_from == "paper"                 # nothing to compare
+                same_runs = method == "RL" and rl_from == baseline                # nothing to compare
                 paper_auc = [area_under_curve(c, iters) for seed, c in paper.get(method, {}).get("curves", {}).items()
                              if seed in s["curves"]]                                    # the same seeds only
                 against = difference(s["auc"], paper_auc) if paper_auc and not same_runs else ""
@@ -903,9 +909,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
     rows = read_rows_csv(results / "sample_efficiency.csv")
     tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
-    for name, variants in (("stability_screen", SCREEN), ("stability_confirm", CONFIRM)):
+    for name, variants, baseline in (("stability_screen", SCREEN, "paper"), ("stability_confirm", CONFIRM, "paper"),
+                                     ("stability_screen_defaults", SCREEN_OVER_DEFAULTS, DEFAULT)):
         if (results / f"{name}.csv").exists():
-            tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants)
+            tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants,
+                                                                baseline)
     if (results / "stability_confirm.csv").exists():
         rows = read_rows_csv(results / "stability_confirm.csv")
         tables[results / "stability_targets.md"] = "\n".join(
@@ -971,15 +979,17 @@ def tables(root: Path = None, check: bool = False) -> list[Path]:
 
 def keep_metrics(src: Path, dest: Path) -> list[str]:
     """Copy the metrics.json of every finished run directory under `src` (its last row at the
-    iteration its config asks for) to dest/<run name>/metrics.json, the small per-run results a
-    sweep is committed as; `--collect dest` rebuilds the figure from them, and copied into a sweep
-    folder they count as finished runs.  Returns the run names copied."""
+    iteration its config asks for: Algorithm 1's iters, PPO's `ppo_minimal.iterations`) to
+    dest/<run name>/metrics.json, the small per-run results a sweep is committed as; `--collect
+    dest` rebuilds the figure from them, and copied into a sweep folder they count as finished
+    runs.  Returns the run names copied."""
     kept = []
     for path in sorted(Path(src).glob("*/metrics.json")):
         saved = json.loads(path.read_text())
-        last = saved["config"].get("iters") if "iters" in saved["config"] else None
-        if last is None or not saved["iterations"] or saved["iterations"][-1]["iteration"] < last:
-            continue                                            # PPO runs, or unfinished ones
+        cfg = config_from_dict(saved["config"])
+        last = ppo_lib.iterations(cfg) if train.is_ppo(cfg) else cfg.iters
+        if not saved["iterations"] or saved["iterations"][-1]["iteration"] < last:
+            continue                                            # unfinished
         (dest / path.parent.name).mkdir(parents=True, exist_ok=True)
         atomic_write(dest / path.parent.name / "metrics.json", lambda p, t=path.read_text(): Path(p).write_text(t))
         kept.append(path.parent.name)
@@ -995,16 +1005,19 @@ def main(argv=None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="with --tables: write nothing; exit 1 naming every file that differs")
     parser.add_argument("--keep-metrics", nargs=2, metavar=("SWEEP_DIR", "DEST"),
-                        help="copy the metrics.json of every finished Algorithm 1 run in SWEEP_DIR to "
+                        help="copy the metrics.json of every finished run (Algorithm 1 or PPO) in SWEEP_DIR to "
                              "DEST/<run name>/ (what is committed of a sweep)")
     parser.add_argument("--screen", action="store_true",
-                        help="write results/stability_screen.csv and stability_confirm.csv from the committed runs "
+                        help="write results/stability_screen.csv, stability_confirm.csv and "
+                             "stability_screen_defaults.csv from the committed runs "
                              "of issue #23 (results/stability_runs/<variant>/, the defaults' in results/figure3_runs/); with --tables, "
                              "then the tables")
     args = parser.parse_args(argv)
     if args.screen:
         for name, variants, seeds, panels in (("stability_screen", SCREEN, SCREEN_SEEDS, SCREEN_PANELS),
-                                              ("stability_confirm", CONFIRM, 10, "abcd")):
+                                              ("stability_confirm", CONFIRM, 10, "abcd"),
+                                              ("stability_screen_defaults", SCREEN_OVER_DEFAULTS, SCREEN_SEEDS,
+                                               SCREEN_PANELS)):
             rows = variant_rows(ROOT, variants, seeds, panels)
             write_rows_csv(ROOT / "results" / f"{name}.csv", ["variant"] + FIGURE3_COLUMNS, rows)
             runs = len({(r["variant"], r["panel"], r["method"], r["seed"]) for r in rows})

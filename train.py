@@ -186,6 +186,7 @@ def save_checkpoint(out: Path, run) -> None:
         "config": cfg, "policy": run.policy.state_dict(), "model": run.model.state_dict(),
         "data": {d: {"states": t.states, "actions": t.actions} for d, t in run.data.items()},
         "il_weight": run.il_weight, "iteration": run.iteration, "kept_return": run.kept_return,
+        "critic": run.critic.state_dict() if run.critic is not None else None,
         "metrics": run.metrics, "rng": run.rng_state()}, p))
 
 
@@ -212,8 +213,11 @@ def restore_run(ckpt: dict, cfg):
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
+    critic = rlil.make_critic(cfg)                                    # made before the rng is restored
+    if critic is not None:
+        critic.load_state_dict(ckpt["critic"])
     return rlil.Run(cfg, policy, model, data, ckpt["il_weight"], rlil.Run.rng_from_state(ckpt["rng"]),
-                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"))
+                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"), critic)
 
 
 def save_rollouts(out: Path, run) -> None:

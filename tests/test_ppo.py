@@ -184,6 +184,14 @@ def test_ppo_run_writes_every_output_resumes_and_evaluates(tmp_path):
     assert len(resumed) == 3
     again = train.train(smoke(), tmp_path / "again", log=quiet)
     assert strip_times(again) == strip_times(whole)                  # same seed, same numbers
+    train.train(smoke(env_steps=80), tmp_path / "short", log=quiet)   # a finished run of another budget
+    (tmp_path / "unfinished").mkdir()                                # the split run before its resume:
+    train.train(smoke(env_steps=80), tmp_path / "unfinished" / "run", log=quiet)
+    meta = json.loads((tmp_path / "unfinished" / "run" / "metrics.json").read_text())
+    meta["config"]["env_steps"] = 160                                # ... as a run of 160 steps would read
+    (tmp_path / "unfinished" / "run" / "metrics.json").write_text(json.dumps(meta))
+    assert sweeps.keep_metrics(tmp_path, tmp_path / "kept") == ["again", "short", "split", "whole"]
+    assert sweeps.keep_metrics(tmp_path / "unfinished", tmp_path / "kept2") == []
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path / "whole"), "--design", "lwnnwl"],
                          capture_output=True, text=True, check=True)
     assert np.isfinite(float(out.stdout.strip().splitlines()[-1].split("distance_m=")[1]))

@@ -173,6 +173,10 @@ def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper
     assert line[("keep_better", "RL+IL")][11].strip() == "3.33 [3.33, 3.33]"   # 20 - mean(20, 10, 20)
     assert line[("keep_better", "RL")][11].strip() == "0.33 [0.33, 0.33]"
     assert line[("paper", "RL+IL")][12].strip() == "6.67 [6.67, 6.67]"      # 16.67 - 10
+    against = sweeps.summarize_variants(rows, {"paper": ((), None), "keep_better": ((), None)}, baseline="keep_better")
+    line = {(c[1].strip(), c[4].strip()): c for c in (row.split("|") for row in against.splitlines()[2:])}
+    assert "− keep_better in area" in against and line[("keep_better", "RL+IL")][11].strip() == ""
+    assert line[("paper", "RL+IL")][11].strip() == "-3.33 [-3.33, -3.33]"   # the other way round
     targets = {c[1].strip()[:2]: c[4].strip() + " | " + c[5].strip()
                for c in (row.split("|") for row in sweeps.summarize_targets(rows, "paper").splitlines()[2:])}
     assert targets["1."] == "RL+IL 3 (largest 10.00 m), RL 0 (largest 0.00 m) | missed"
