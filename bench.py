@@ -180,7 +180,7 @@ def default_run_steps(cfg=None) -> dict:
     rng, graph = np.random.default_rng(0), sim2d.design_graph(cfg.train[0])
     torch.manual_seed(0)
     data = rlil.Trajectories(graph.code, *random_transitions(graph.code, 16, 50, seed=0, episodes=True))
-    policy, model = ModularPolicy(cfg.gnn), rlil.make_model(cfg)
+    policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
     flat = data.transitions()
     model.fit_normalization([(graph, *flat)])
 

@@ -324,3 +324,15 @@ def test_gaussian_log_prob_and_entropy_by_hand():
     torch.testing.assert_close(gnn.gaussian_log_prob(mean, log_std, a), torch.tensor([by_hand]))
     entropy_by_hand = 2 * 0.5 * math.log(2 * math.pi * math.e) + math.log(2.0)
     torch.testing.assert_close(gnn.gaussian_entropy(log_std), torch.tensor([entropy_by_hand]))
+
+
+def test_bench_default_run_steps_run_against_todays_algorithm():
+    """bench.py measures the code the training runs; a step that no longer runs there (a removed
+    function, a changed signature) must fail here, not only when someone benchmarks."""
+    import bench
+    import modular_rlil_minimal as rlil
+    cfg = rlil.preset("tiny", train=("lnwwnl",), demos=("llllll", "wnwwnw"))
+    steps = bench.default_run_steps(cfg)
+    assert set(steps) == {"policy", "bc", "model"}
+    for step in steps.values():
+        step()
