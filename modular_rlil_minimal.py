@@ -23,9 +23,12 @@ this file.  On by default (docs/stability.md measured them): the first model
 also sees the clone's roll-outs (`--clone-data`, `add_clone_rollouts`) and an
 improvement check that keeps the previous policy when the new one does worse in
 the simulator (`--keep-better`, `improvement_check`).  `--clone-data off
---keep-better off` is the paper's Algorithm 1.  Switches that were measured and
-did not help (an ensemble of models, a trust region) have left the code; their
-rows are in docs/ablations.md with the last commit that has them.
+--keep-better off` is the paper's Algorithm 1.  Off by default, being screened
+(docs/stability.md): a critic that bootstraps the T-step model return
+(`--critic`, `bootstrapped_return`, `fit_critic`; contact features, the other
+candidate, live in gnn.py).  Switches that were measured and did not help (an
+ensemble of models, a trust region) have left the code; their rows are in
+docs/ablations.md with the last commit that has them.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
@@ -750,7 +753,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 
 # ----------------------------------------------------------------------------
-# Not in the paper: switches against model error, on by default (docs/stability.md)
+# Not in the paper: switches against model error (docs/stability.md): clone_data and
+# keep_better on by default, the critic off
 # ----------------------------------------------------------------------------
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""
