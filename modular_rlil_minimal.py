@@ -367,7 +367,8 @@ def rl_loss(policy: ModularPolicy, model, buffers: dict, cfg: Config, rng, criti
         else:                                                                           # not in the paper
             rewards, states, _ = rollout_steps(policy, model, s0, h0, graph, cfg.horizon)
             R = bootstrapped_return(rewards, states[-1], critic, graph, cfg)
-            rollouts[design] = (states.detach(), rewards.detach())
+            if rollouts is not None:
+                rollouts[design] = (states.detach(), rewards.detach())
         loss = loss - R.mean()                                                          # line 16
     return loss
 
