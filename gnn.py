@@ -66,7 +66,6 @@ class GNNConfig:
     rounds: int = 2             # message-passing rounds per step; 1-4 (1 lets each limb hear all others)
     log_std_min: float = -2.5   # policy log-std lower bound (std 0.08 in normalised action units)
     log_std_max: float = 0.0    # policy log-std upper bound (std 1, half the action range)
-    contact_features: bool = False   # model inputs gain foot height and velocity, wheel height (sim2d.contact_features)
 
 
 TYPES = ("body", "leg", "wheel")
@@ -292,9 +291,7 @@ class ModularModel(nn.Module):
     Node inputs: body [y, pitch, vx, vy, pitch_rate] (x is left out, so the
     prediction is the same wherever the robot is), leg [4 joint states,
     2 actions], wheel [rate, action]; actions are clipped to [-1, 1] as the
-    world clips them.  With `contact_features` a leg also reads its foot's
-    height above the ground and velocity, and a wheel its lowest point's
-    height (sim2d.contact_features, differentiable forward kinematics).  Node outputs: body [dx, dy, dpitch, dvx, dvy,
+    world clips them.  Node outputs: body [dx, dy, dpitch, dvx, dvy,
     dpitch_rate], leg 4 joint changes, wheel 1.  Inputs and outputs are
     normalised per type with statistics from `fit_normalization`.
 
@@ -307,25 +304,18 @@ class ModularModel(nn.Module):
     def __init__(self, cfg: GNNConfig = GNNConfig()):
         super().__init__()
         self.cfg = cfg
-        extra = {"body": 0, "leg": 3, "wheel": 1} if cfg.contact_features else {"body": 0, "leg": 0, "wheel": 0}
-        self.in_dims = {"body": BODY_DIM - 1 + extra["body"], "leg": LEG_DIM + LEG_ACT_DIM + extra["leg"],
-                        "wheel": WHEEL_DIM + WHEEL_ACT_DIM + extra["wheel"]}
+        self.in_dims = {"body": BODY_DIM - 1, "leg": LEG_DIM + LEG_ACT_DIM, "wheel": WHEEL_DIM + WHEEL_ACT_DIM}
         self.nets = nn.ModuleDict({k: type_net(k, self.in_dims[k], self.OUT_DIMS[k], cfg.hidden,
                                                recurrent=False) for k in TYPES})
         self.norm_in = nn.ModuleDict({k: Normalizer(d) for k, d in self.in_dims.items()})
         self.norm_out = nn.ModuleDict({k: Normalizer(d) for k, d in self.OUT_DIMS.items()})
 
     def inputs(self, s, a, graph) -> dict:
-        """Raw node inputs: {"body": (n, 1, 5), "leg": (n, L, 6 or 9), "wheel": (n, W, 2 or 3)}."""
+        """Raw node inputs: {"body": (n, 1, 5), "leg": (n, L, 6), "wheel": (n, W, 2)}."""
         ps, pa = node_state(s, graph), sim2d.split_action(a.clamp(-1.0, 1.0), graph)
-        x = {"body": ps["body"][..., 1:],                                                   # drop x
-             "leg": torch.cat([ps["leg"], pa["leg"]], -1),
-             "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
-        if self.cfg.contact_features:
-            contact = sim2d.contact_features(s, graph)                                      # (n, L, 3), (n, W, 1)
-            x = {**x, "leg": torch.cat([x["leg"], contact["leg"]], -1),
-                 "wheel": torch.cat([x["wheel"], contact["wheel"]], -1)}
-        return x
+        return {"body": ps["body"][..., 1:],                                                # drop x
+                "leg": torch.cat([ps["leg"], pa["leg"]], -1),
+                "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
 
     def wire(self, graph) -> "ModelOnDesign":
         return ModelOnDesign(self, graph)
@@ -568,18 +558,15 @@ class PolicyOnDesign:
 
 
 @functools.lru_cache(maxsize=None)
-def model_input_index(graph, contact: bool) -> torch.Tensor:
-    """(N, width): which columns of [s (S), clipped a (A), contact features (C), 0] feed each node,
-    in `ModularModel.inputs`' order, zero-padded to the widest node (the last column is the 0)."""
+def model_input_index(graph) -> torch.Tensor:
+    """(N, width): which columns of [s (S), clipped a (A), 0] feed each node, in
+    `ModularModel.inputs`' order, zero-padded to the widest node (the last column is the 0)."""
     S, A, L, W = graph.state_dim, graph.action_dim, graph.n_legs, graph.n_wheels
-    C = (3 * L + W) if contact else 0
     body = list(range(1, BODY_DIM))                                                         # drop x
     legs = [list(range(BODY_DIM + LEG_DIM * j, BODY_DIM + LEG_DIM * (j + 1)))
-            + [S + LEG_ACT_DIM * j + i for i in range(LEG_ACT_DIM)]
-            + ([S + A + 3 * j + i for i in range(3)] if contact else []) for j in range(L)]
-    wheels = [[BODY_DIM + LEG_DIM * L + j, S + LEG_ACT_DIM * L + j] + ([S + A + 3 * L + j] if contact else [])
-              for j in range(W)]
-    rows, zero = [body] + legs + wheels, S + A + C
+            + [S + LEG_ACT_DIM * j + i for i in range(LEG_ACT_DIM)] for j in range(L)]
+    wheels = [[BODY_DIM + LEG_DIM * L + j, S + LEG_ACT_DIM * L + j] for j in range(W)]
+    rows, zero = [body] + legs + wheels, S + A
     width = max(len(r) for r in rows)
     return torch.tensor([r + [zero] * (width - len(r)) for r in rows])
 
@@ -588,8 +575,8 @@ class ModelOnDesign:
     """The model wired for one design (see `Wired`): f(s, a) -> s_next on flat states (n, S)."""
 
     def __init__(self, model: ModularModel, graph):
-        self.graph, self.contact = graph, model.cfg.contact_features
-        self.index = model_input_index(graph, self.contact)                                 # (N, I)
+        self.graph = graph
+        self.index = model_input_index(graph)                                               # (N, I)
         width, out_width = self.index.shape[1], max(model.OUT_DIMS.values())
         self.w = wire(model.nets, graph, model.cfg.rounds, lambda l: pad_to(l.weight, width),
                       lambda l: pad_to(l.weight, out_width, dim=0),
@@ -602,11 +589,7 @@ class ModelOnDesign:
 
     def delta_normalised(self, s, a) -> torch.Tensor:
         """The network proper: the normalised change of state (n, S)."""
-        parts = [s, a.clamp(-1.0, 1.0)]
-        if self.contact:
-            c = sim2d.contact_features(s, self.graph)
-            parts += [c["leg"].flatten(1), c["wheel"].flatten(1)]
-        src = torch.cat(parts + [s.new_zeros(len(s), 1)], 1)                                # (n, S + A + C + 1)
+        src = torch.cat([s, a.clamp(-1.0, 1.0), s.new_zeros(len(s), 1)], 1)                 # (n, S + A + 1)
         x = (src[:, self.index] - self.in_mean) / self.in_std                               # (n, N, I)
         z = propagate(self.w, encode(self.w, x.transpose(0, 1)))                            # (N, n, H)
         return to_flat(head(self.w, z), self.out_index)                                     # (n, S)

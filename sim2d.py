@@ -313,45 +313,6 @@ def reward(s, a, s_next, graph: DesignGraph):
     return progress - pitch_cost - effort_cost - pose_cost
 
 
-def contact_features(s, graph: DesignGraph) -> dict:
-    """Where the limbs meet the ground, by forward kinematics: numpy or torch (differentiable).
-
-    Returns {"leg": (..., L, 3) [foot height above the ground surface (m), foot
-    vx, foot vy (m/s)], "wheel": (..., W, 1) [height of the wheel's lowest
-    point above the ground surface (m)]}.  A foot at height <= 0 touches the
-    ground; a touching foot moving backwards pushes the body forward.  Used as
-    extra model inputs (gnn.ModularModel with contact features) so that contact
-    need not be inferred from joint angles.
-    """
-    xp = torch if isinstance(s, torch.Tensor) else np
-    parts = split_state(s, graph)
-    y, pitch, vx, vy, w = (s[..., k:k + 1] for k in (1, 2, 3, 4, 5))           # (..., 1) each
-    c, si = xp.cos(pitch), xp.sin(pitch)
-
-    def mounts(ports):                                                          # (K,) body-frame offsets, m
-        px = [PORT_X[min(p, 5 - p)] * CM for p in ports]
-        return xp.asarray(px, dtype=s.dtype), xp.full((len(ports),), MOUNT_Y * CM, dtype=s.dtype)
-
-    def on_body(px, py):                # world offset (m) from the body centre and its velocity
-        ox, oy = px * c - py * si, px * si + py * c
-        return ox, oy, vx - w * oy, vy + w * ox
-
-    px, py = mounts(graph.leg_ports)
-    hx, hy, hvx, hvy = on_body(px, py)                                           # (..., L) hips
-    q = parts["leg"]                                                             # (..., L, 4)
-    a1, w1 = pitch + q[..., 0], w + q[..., 2]                                    # thigh angle, rate
-    a2, w2 = a1 + q[..., 1], w1 + q[..., 3]                                      # shin angle, rate
-    kx, ky = THIGH * CM * xp.sin(a1), -THIGH * CM * xp.cos(a1)                   # hip -> knee, m
-    fx, fy = SHIN * CM * xp.sin(a2), -SHIN * CM * xp.cos(a2)                     # knee -> foot, m
-    foot_y = y + hy + ky + fy - FOOT_RADIUS * CM - GROUND_TOP * CM
-    foot_vx = hvx - w1 * ky - w2 * fy
-    foot_vy = hvy + w1 * kx + w2 * fx
-    wx, wy = mounts(graph.wheel_ports)
-    _, axle_y, _, _ = on_body(wx, wy)
-    wheel = (y + axle_y - WHEEL_RADIUS * CM - GROUND_TOP * CM)[..., None]        # (..., W, 1)
-    return {"leg": xp.stack([foot_y, foot_vx, foot_vy], -1), "wheel": wheel}
-
-
 # ----------------------------------------------------------------------------
 # Initial states p(s) and random spline actions (Sec. III-B)
 # ----------------------------------------------------------------------------

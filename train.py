@@ -97,14 +97,19 @@ def config_to_dict(cfg) -> dict:
 
 # Settings that left the code (docs/ablations.md, Removed mechanisms) and the value at which the
 # code they switched on did nothing: a run written with that value is today's algorithm.
-REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0}
+REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
+                  "critic": False}
+REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   # acted only with it on
 
 
 def config_from_dict(d: dict):
     """The config `config_to_dict` wrote; a UsageError naming settings this version lacks (a
     removed setting at its off value, REMOVED_AT_OFF, is dropped: the run did not use it)."""
-    d = {k: v for k, v in d.items()
-         if k not in ("versions", "method") and not (k in REMOVED_AT_OFF and v == REMOVED_AT_OFF[k])}
+    def kept(settings: dict, prefix: str = "") -> dict:
+        return {k: v for k, v in settings.items() if prefix + k not in REMOVED_WITH_THEIR_SWITCH
+                and not (prefix + k in REMOVED_AT_OFF and v == REMOVED_AT_OFF[prefix + k])}
+    d = {k: v for k, v in kept(d).items() if k not in ("versions", "method")}
+    d["gnn"] = kept(d["gnn"], "gnn.")
     cls = ppo_lib.PPOConfig if "env_steps" in d else rlil.Config       # PPO's are written with "method": "ppo"
     unknown = sorted(set(d) - {f.name for f in dataclasses.fields(cls)})
     unknown += sorted(f"gnn.{k}" for k in set(d["gnn"]) - {f.name for f in dataclasses.fields(GNNConfig)})
@@ -186,7 +191,6 @@ def save_checkpoint(out: Path, run) -> None:
         "config": cfg, "policy": run.policy.state_dict(), "model": run.model.state_dict(),
         "data": {d: {"states": t.states, "actions": t.actions} for d, t in run.data.items()},
         "il_weight": run.il_weight, "iteration": run.iteration, "kept_return": run.kept_return,
-        "critic": run.critic.state_dict() if run.critic is not None else None,
         "metrics": run.metrics, "rng": run.rng_state()}, p))
 
 
@@ -213,11 +217,8 @@ def restore_run(ckpt: dict, cfg):
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
-    critic = rlil.make_critic(cfg)                                    # made before the rng is restored
-    if critic is not None:
-        critic.load_state_dict(ckpt["critic"])
     return rlil.Run(cfg, policy, model, data, ckpt["il_weight"], rlil.Run.rng_from_state(ckpt["rng"]),
-                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"), critic)
+                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"))
 
 
 def save_rollouts(out: Path, run) -> None:

@@ -136,7 +136,7 @@ def test_batched_path_equals_the_node_by_node_computation(code):
     layer) computes what `node_by_node` computes with each node's own type's modules."""
     torch.manual_seed(0)
     graph, n = sim2d.design_graph(code), 4
-    cfg = gnn.GNNConfig(contact_features=True)
+    cfg = gnn.GNNConfig()
     policy, model, value = gnn.ModularPolicy(cfg), gnn.ModularModel(cfg), gnn.ModularValue(cfg)
     s, a = initial_states(graph, n), random_actions(graph, n) * 1.5
     model.fit_normalization([(graph, s, a, s + 0.1 * torch.randn_like(s))])
