@@ -668,8 +668,8 @@ CONFIRM = {  # the 10-seed Figure 3 with the chosen defaults against the paper's
 DEFAULT = "default (clone_data+keep_better)"        # the chosen defaults: results/figure3_runs/
 SCREEN_OVER_DEFAULTS = {  # the later candidates, each over the chosen defaults and against them, same seeds
     DEFAULT: ((), None),
-    "contact_features": (("--gnn-contact-features", "on"), None),   # flag removed after 0571107; runs committed
-    "critic": (("--critic", "on"), None),
+    "contact_features": (("--gnn-contact-features", "on"), None),   # both flags removed after 0571107;
+    "critic": (("--critic", "on"), None),                            # their runs stay committed
 }
 SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost between consecutive iterations
 
