@@ -575,7 +575,6 @@ class ModelOnDesign:
     """The model wired for one design (see `Wired`): f(s, a) -> s_next on flat states (n, S)."""
 
     def __init__(self, model: ModularModel, graph):
-        self.graph = graph
         self.index = model_input_index(graph)                                               # (N, I)
         width, out_width = self.index.shape[1], max(model.OUT_DIMS.values())
         self.w = wire(model.nets, graph, model.cfg.rounds, lambda l: pad_to(l.weight, width),

@@ -104,7 +104,8 @@ REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   
 
 def config_from_dict(d: dict):
     """The config `config_to_dict` wrote; a UsageError naming settings this version lacks (a
-    removed setting at its off value, REMOVED_AT_OFF, is dropped: the run did not use it)."""
+    removed setting at its off value, REMOVED_AT_OFF, is dropped: the run did not use it; so are
+    the parameters of a removed switch, REMOVED_WITH_THEIR_SWITCH, whatever their value)."""
     def kept(settings: dict, prefix: str = "") -> dict:
         return {k: v for k, v in settings.items() if prefix + k not in REMOVED_WITH_THEIR_SWITCH
                 and not (prefix + k in REMOVED_AT_OFF and v == REMOVED_AT_OFF[prefix + k])}
