@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -45,10 +43,9 @@ class DemoConfig:
     """s, one tripod cycle, half stance and half swing (0.4-0.7); 0.5 s is 6
     control steps and needs a 12.5 cm half stride for 1 m/s."""
     step_lift: float = 4.0
-    """cm, how high a swing foot rises above its stance depth (3-10).  6 cm
-    walked the hexapod at 0.97 m/s until issue #11's world repair and at 0.90
-    m/s after it (its feet no longer sink 2 cm into the ground and slide, and a
-    higher swing lands later, shortening the stride); 4 cm: 1.01 m/s."""
+    """cm, how high a swing foot rises above its stance depth (3-10).  4 cm
+    walks the hexapod at 1.01 m/s, 6 cm at 0.90 m/s (a higher swing lands
+    later, shortening the stride)."""
     max_half_stride: float = 16.0
     """cm, largest foot travel either side of the hip (10-17; the leg reaches 36)."""
     start_ramp: float = 0.5
@@ -82,7 +79,7 @@ TRIPOD_B = (1, 3, 5)   # ports of the second tripod, half a period behind {0, 2,
 FRONT_PORTS, REAR_PORTS = (0, 5), (2, 3)
 LEG_LENGTH = sim2d.THIGH + sim2d.SHIN                               # cm, 36: two equal links
 LEG_REACH = 0.98 * LEG_LENGTH                                       # cm, longest hip-foot distance asked for
-STANCE_HEIGHT = LEG_LENGTH * np.cos(sim2d.HIP_NOMINAL)              # cm, ~31.6: hip to foot, nominal pose
+STANCE_DEPTH = LEG_LENGTH * np.cos(sim2d.HIP_NOMINAL)              # cm, ~31.6: hip to foot, nominal pose
 
 
 # ----------------------------------------------------------------------------
@@ -98,11 +95,11 @@ def tripod_phase(t: int, ports: tuple[int, ...], period: float) -> np.ndarray:
     return (t * sim2d.CONTROL_DT / period + offset) % 1.0
 
 
-def foot_path(phase, half_stride, height, lift):
+def foot_path(phase, half_stride, depth, lift):
     """Foot position (cm) relative to the hip in the body frame; arrays broadcast.
 
     Stance (phase < 0.5): the foot moves back in a straight line from
-    +half_stride to -half_stride at depth `height`, pushing the body forward.
+    +half_stride to -half_stride at depth `depth`, pushing the body forward.
     Swing: it returns to +half_stride on a raised cosine arc `lift` high.
     >>> fx, fy = foot_path(np.array([0.0, 0.25, 0.75]), 10.0, 30.0, 6.0)
     >>> fx.round(6) + 0.0, fy          # start of stance, mid stance, top of swing
@@ -112,7 +109,7 @@ def foot_path(phase, half_stride, height, lift):
     stance_x = half_stride * (1 - 2 * u)
     swing_x = -half_stride + half_stride * (1 - np.cos(np.pi * u))
     fx = np.where(phase < 0.5, stance_x, swing_x)
-    fy = -height + np.where(phase < 0.5, 0.0, lift * np.sin(np.pi * u))
+    fy = -depth + np.where(phase < 0.5, 0.0, lift * np.sin(np.pi * u))
     return fx, fy
 
 
@@ -121,7 +118,7 @@ def leg_inverse_kinematics(fx, fy):
 
     Two equal links: the knee bends by -2 acos(d / 2L); the hip points at the
     foot and turns forward by half that bend (the knee stays behind the foot line).
-    >>> [round(float(q), 3) for q in leg_inverse_kinematics(0.0, -STANCE_HEIGHT)]   # nominal pose
+    >>> [round(float(q), 3) for q in leg_inverse_kinematics(0.0, -STANCE_DEPTH)]   # nominal pose
     [0.5, -1.0]
     """
     d = np.minimum(np.hypot(fx, fy), LEG_REACH)
@@ -129,7 +126,7 @@ def leg_inverse_kinematics(fx, fy):
     return np.arctan2(fx, -fy) + bend, -2.0 * bend
 
 
-def target_speed(t: int, cfg: DemoConfig) -> float:
+def ramped_target_speed(t: int, cfg: DemoConfig) -> float:
     """v*(t), m/s: the target forward speed, ramped up from 0 over cfg.start_ramp seconds."""
     if cfg.start_ramp <= 0:
         return cfg.target_speed
@@ -161,10 +158,10 @@ def modulated_step_size(v_star: float, vx: np.ndarray, cfg: DemoConfig) -> np.nd
     12.5
     """
     v = commanded_speed(v_star, vx, cfg)
-    return np.clip(v / sim2d.CM * cfg.gait_period / 4, 0.0, cfg.max_half_stride)
+    return np.clip(v / sim2d.M_PER_CM * cfg.gait_period / 4, 0.0, cfg.max_half_stride)
 
 
-def stance_height(y: np.ndarray, pitch: np.ndarray, hip_x: np.ndarray, y_nominal: float,
+def stance_depth(y: np.ndarray, pitch: np.ndarray, hip_x: np.ndarray, y_nominal: float,
                   cfg: DemoConfig) -> np.ndarray:
     """Hip-to-foot depth (cm) per leg, (N, 1) x (L,) -> (N, L): holds body height and pitch.
 
@@ -172,7 +169,7 @@ def stance_height(y: np.ndarray, pitch: np.ndarray, hip_x: np.ndarray, y_nominal
     raises a hip at hip_x cm along the body by hip_x * sin(pitch), so front
     legs shorten and rear legs lengthen by pitch_gain times that.
     """
-    return (STANCE_HEIGHT + cfg.height_gain * (y_nominal - y) / sim2d.CM
+    return (STANCE_DEPTH + cfg.height_gain * (y_nominal - y) / sim2d.M_PER_CM
             - cfg.pitch_gain * hip_x * np.sin(pitch))
 
 
@@ -193,10 +190,10 @@ def tripod_gait_actions(graph: sim2d.DesignGraph, state: np.ndarray, t: int, est
     legs = sim2d.split_state(state, graph)["leg"]                           # (N, L, 4)
     y, pitch, vx = estimate[:, 0:1], estimate[:, 1:2], estimate[:, 2:3]     # (N, 1) each
     hip_x = np.array([sim2d.PORT_X[min(p, 5 - p)] for p in graph.leg_ports])  # (L,) cm
-    half_stride = modulated_step_size(target_speed(t, cfg), vx, cfg)       # (N, 1) cm
-    height = stance_height(y, pitch, hip_x, sim2d.nominal_state(graph)[1], cfg)   # (N, L) cm
+    half_stride = modulated_step_size(ramped_target_speed(t, cfg), vx, cfg)       # (N, 1) cm
+    depth = stance_depth(y, pitch, hip_x, sim2d.nominal_state(graph)[1], cfg)    # (N, L) cm
     phase = tripod_phase(t + 1, graph.leg_ports, cfg.gait_period)           # (L,) reference at t+1
-    fx, fy = foot_path(phase, half_stride, height, cfg.step_lift)          # (N, L) cm, body frame
+    fx, fy = foot_path(phase, half_stride, depth, cfg.step_lift)           # (N, L) cm, body frame
     hip_ref, knee_ref = leg_inverse_kinematics(fx, fy)
     q_ref = np.stack([np.clip(hip_ref, *sim2d.HIP_LIMITS), np.clip(knee_ref, *sim2d.KNEE_LIMITS)], -1)
     # The joint rate that closes tracking_gain of the error in one control step.
@@ -213,9 +210,9 @@ def wheel_drive_actions(graph: sim2d.DesignGraph, state: np.ndarray, t: int, est
     cfg.wheel_pitch_backoff (a reflex on the raw pitch: a wheelie or a nose
     dive is not driven further).
     """
-    rim_speed = commanded_speed(target_speed(t, cfg), estimate[:, 2], cfg)              # (N,) m/s
+    rim_speed = commanded_speed(ramped_target_speed(t, cfg), estimate[:, 2], cfg)              # (N,) m/s
     backoff = np.clip(1 - np.abs(state[:, 2]) / cfg.wheel_pitch_backoff, 0.0, 1.0)      # (N,)
-    rate = -rim_speed / (sim2d.WHEEL_RADIUS * sim2d.CM) * backoff                       # (N,) rad/s
+    rate = -rim_speed / (sim2d.WHEEL_RADIUS * sim2d.M_PER_CM) * backoff                       # (N,) rad/s
     return np.repeat((rate / sim2d.WHEEL_MAX_SPEED)[:, None], graph.n_wheels, axis=1)
 
 
@@ -233,12 +230,9 @@ def check_demonstrable(graph: sim2d.DesignGraph) -> None:
     A wheel always supports; a leg supports in its stance half, and the two
     tripods alternate, so an end (front ports 0/5, rear ports 2/3) is held up
     throughout only by a wheel or by legs on both of its ports.  Otherwise that
-    end drops every step.  Measured over all 728 designs (8 robots x 100
-    steps each, in the world of issue #11): the 324 accepted all walk (min
-    distance 7.6 m, no flips, |pitch| < 0.07); of the 404 rejected, 23 flipped
-    a robot and 212 more dragged, pitched or crawled (under 5 m or |pitch| >
-    0.3); 169 would have walked anyway (the rule is sufficient, not necessary:
-    e.g. nwwwwn rolls on its middle and rear axles).
+    end drops every step.  The rule is sufficient, not necessary: over all
+    728 designs the accepted ones all walk, and some rejected ones would too
+    (nwwwwn rolls on its middle and rear axles); docs/world.md has the counts.
     """
     def held(ports):
         return any(graph.code[p] == "w" for p in ports) or all(graph.code[p] == "l" for p in ports)
@@ -299,20 +293,16 @@ class DemoData:
     meta: dict = field(default_factory=dict)   # seed, episodes, steps, config, source hash
 
     def save(self, path: Path | str) -> None:
-        """Write an .npz atomically (a temporary file in the same folder, then os.replace)."""
+        """Write an .npz atomically (sim2d.atomic_write)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
+
+        def write(tmp):
+            with open(tmp, "wb") as f:
                 np.savez(f, design=self.design, actions=self.actions, states=self.states,
                          distance_m=self.distance_m, flipped=self.flipped, meta=json.dumps(self.meta),
                          **{f"obs_{k}": v for k, v in self.obs.items()})
-            os.chmod(tmp, 0o644)                   # mkstemp makes it private (0600)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        sim2d.atomic_write(path, write)
 
     @classmethod
     def load(cls, path: Path | str) -> "DemoData":

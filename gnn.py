@@ -7,12 +7,10 @@ message passing over the design graph), Sec. III-C "Train approximate dynamics
 model" (the same modular structure, predicting the change of state) and
 Sec. III-J "Implementation details" (the policy is recurrent over time).
 
-    python gnn.py            # parameter counts per module type and per design
-    python bench.py --networks        # speed of policy updates through model roll-outs, of model fitting,
-                                      # and of the default run's policy, BC and model steps
-    python bench.py --profile policy  # operators of the default run's policy step, by self CPU time
-    (`python gnn.py --bench` and `python gnn.py --profile X` still work: the parameter
-    counts, then they forward to bench.py.)
+    python gnn.py                           # parameter counts per module type and per design
+    python tools/bench.py --networks        # speed of policy updates through model roll-outs, of model
+                                            # fitting, and of the default run's policy, BC and model steps
+    python tools/bench.py --profile policy  # operators of the default run's policy step, by self CPU time
 
 How a design becomes a network
 ------------------------------
@@ -32,7 +30,7 @@ design, so the parameter count does not depend on the design.  One step:
      first updates the node's memory h <- GRU(z, h), then decodes a Gaussian
      over the node's joint-velocity commands.
 
-A batch holds many robots of one design.  `wire` gathers each per-type layer
+A batch holds many robots of one design.  `gather_layers` gathers each per-type layer
 along the design's node list into a (nodes, in, out) stack, once per roll-out
 or batch of windows, so each layer above is one batched matrix product
 (torch.baddbmm) over (nodes, robots, features) for all module types at once:
@@ -62,10 +60,16 @@ from sim2d import (BODY_DIM, BODY_OBS_DIM, LEG_ACT_DIM, LEG_DIM, LEG_OBS_DIM,
 
 @dataclass
 class GNNConfig:
-    hidden: int = 64            # width of every per-type layer, node state and memory; 32-256
-    rounds: int = 2             # message-passing rounds per step; 1-4 (1 lets each limb hear all others)
-    log_std_min: float = -2.5   # policy log-std lower bound (std 0.08 in normalised action units)
-    log_std_max: float = 0.0    # policy log-std upper bound (std 1, half the action range)
+    """The networks' sizes (train.py's --gnn-<name> flags; the docstring under a field is its help)."""
+
+    hidden: int = 64
+    """width of every per-type layer, node state and memory; 32-256"""
+    rounds: int = 2
+    """message-passing rounds per step; 1-4 (1 lets each limb hear all others)"""
+    log_std_min: float = -2.5
+    """policy log-std lower bound (std 0.08 in normalised action units)"""
+    log_std_max: float = 0.0
+    """policy log-std upper bound (std 1, half the action range)"""
 
 
 TYPES = ("body", "leg", "wheel")
@@ -143,7 +147,7 @@ def node_by_node(nets: nn.ModuleDict, graph, x: list, h: list | None, rounds: in
     node's memory (n, H) for the policy, None for the model and the critic.
     Returns each node's head output (n, out), None for a node without a head
     (the policy's body), and the new memories (None without memory).  The
-    batched path below (`wire`) computes the same numbers for all nodes at
+    batched path below (`gather_layers`) computes the same numbers for all nodes at
     once; tests/test_gnn.py checks that it does.
     """
     kinds = [kind for kind, _ in graph.nodes]
@@ -178,8 +182,8 @@ class ModularPolicy(nn.Module):
     The log-std is state-dependent: a second output per joint, squashed into
     [log_std_min, log_std_max] by a sigmoid (about mid-way at initialisation).
 
-    `wire(graph)` gathers the layers along a design's nodes once, for many
-    steps (`PolicyOnDesign`); `forward` and `act` wire for one step.
+    `on_design(graph)` gathers the layers along a design's nodes once, for many
+    steps (`PolicyOnDesign`); `forward` and `act` gather them for one step.
     """
 
     def __init__(self, cfg: GNNConfig = GNNConfig()):
@@ -195,15 +199,15 @@ class ModularPolicy(nn.Module):
         """h_0 = 0: (1 + n_legs + n_wheels, n, hidden), node 0 the body, then the legs, then the wheels."""
         return torch.zeros(1 + graph.n_legs + graph.n_wheels, n, self.cfg.hidden)
 
-    def wire(self, graph) -> "PolicyOnDesign":
+    def on_design(self, graph) -> "PolicyOnDesign":
         return PolicyOnDesign(self, graph)
 
     def forward(self, obs: dict, graph, hidden):
         """One control step from `observe`'s dict of tensors: mean (n, A), log_std (n, A), next hidden."""
-        return self.wire(graph).step(obs, hidden)                                   # (n, A), (n, A), (N, n, H)
+        return self.on_design(graph).step(obs, hidden)                                   # (n, A), (n, A), (N, n, H)
 
     def forward_node_by_node(self, obs: dict, graph, hidden):
-        """`forward` written plainly with `node_by_node` (what the batched `wire` path computes).
+        """`forward` written plainly with `node_by_node` (what the batched `on_design` path computes).
         A node's input is its scaled observation and its memory; each limb's head gives the
         mean and the raw log-std of its joints, in sim2d's action order."""
         x = [torch.cat([o * OBS_SCALE[kind], h], -1) for (kind, _), o, h in zip(graph.nodes, node_obs(obs), hidden)]
@@ -228,7 +232,7 @@ class ModularPolicy(nn.Module):
         penalty on demonstration observations (Sec. III-J).
         """
         n, T = actions_seq.shape[:2]
-        pi = self.wire(graph)
+        pi = self.on_design(graph)
         h = self.initial_hidden(n, graph) if hidden is None else hidden                    # (N, n, H)
         means, log_stds = [], []
         for t in range(T):
@@ -263,9 +267,9 @@ class ModularValue(nn.Module):
 
     def forward(self, obs: dict, graph) -> torch.Tensor:
         """`observe`'s dict of tensors (n, ...) -> V (n,)."""
-        w = wire(self.nets, graph, self.cfg.rounds, lambda l: pad_to(l.weight, OBS_WIDTH))
+        w = gather_layers(self.nets, graph, self.cfg.rounds, lambda l: pad_to(l.weight, OBS_WIDTH))
         o = nodes_first(obs, node_index(graph).kinds, OBS_WIDTH) * node_obs_scale(graph)    # (N, n, O)
-        return head(w, propagate(w, encode(w, o))).mean((0, 2))                            # (n,)
+        return read_out(w, propagate(w, encode_nodes(w, o))).mean((0, 2))                  # (n,)
 
 
 # ----------------------------------------------------------------------------
@@ -295,8 +299,8 @@ class ModularModel(nn.Module):
     dpitch_rate], leg 4 joint changes, wheel 1.  Inputs and outputs are
     normalised per type with statistics from `fit_normalization`.
 
-    `wire(graph)` gathers the layers along a design's nodes once, for many
-    steps (`ModelOnDesign`); `forward` and `loss` wire for one call.
+    `on_design(graph)` gathers the layers along a design's nodes once, for many
+    steps (`ModelOnDesign`); `forward` and `loss` gather them for one call.
     """
 
     OUT_DIMS = {"body": BODY_DIM, "leg": LEG_DIM, "wheel": WHEEL_DIM}
@@ -317,12 +321,12 @@ class ModularModel(nn.Module):
                 "leg": torch.cat([ps["leg"], pa["leg"]], -1),
                 "wheel": torch.cat([ps["wheel"], pa["wheel"]], -1)}
 
-    def wire(self, graph) -> "ModelOnDesign":
+    def on_design(self, graph) -> "ModelOnDesign":
         return ModelOnDesign(self, graph)
 
     def forward(self, s, a, graph) -> torch.Tensor:
         """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
-        return self.wire(graph)(s, a)
+        return self.on_design(graph)(s, a)
 
     def forward_node_by_node(self, s, a, graph) -> torch.Tensor:
         """`forward` written plainly with `node_by_node`: normalised node inputs -> each node's
@@ -345,7 +349,7 @@ class ModularModel(nn.Module):
 
     def loss(self, s, a, s_next, graph) -> torch.Tensor:
         """Mean squared error of the normalised change of state, averaged over the n x S state entries."""
-        f = self.wire(graph)
+        f = self.on_design(graph)
         target = (s_next - s - f.out_mean) / f.out_std                                      # (n, S)
         return (f.delta_normalised(s, a) - target).pow(2).sum() / s.numel()
 
@@ -370,7 +374,7 @@ class ModularModel(nn.Module):
 
 
 # ----------------------------------------------------------------------------
-# The batched path training runs: the same layers wired along one design's nodes,
+# The batched path training runs: the same layers gathered along one design's nodes,
 # every node's own type's layer in one batched product (checked equal to node_by_node)
 # ----------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -416,7 +420,7 @@ def per_node_linear(layers: list, type_index, weight=None, bias=None):
 
 
 @dataclass
-class Wired:
+class NodeLayers:
     """A modular network's layers gathered along one design's nodes (node 0 the body, then the limbs).
 
     Each per-type layer becomes a (nodes, in, out) stack, so one torch.baddbmm
@@ -435,9 +439,9 @@ class Wired:
     rounds: int
 
 
-def wire(nets: nn.ModuleDict, graph, rounds: int, encode_weight=None, head_weight=None, head_bias=None,
-         limb_heads: bool = False) -> Wired:
-    """Gather `nets`' per-type layers along the design's nodes (see `Wired`).  encode_weight /
+def gather_layers(nets: nn.ModuleDict, graph, rounds: int, encode_weight=None, head_weight=None,
+                  head_bias=None, limb_heads: bool = False) -> NodeLayers:
+    """Gather `nets`' per-type layers along the design's nodes (see `NodeLayers`).  encode_weight /
     head_weight / head_bias pad a type's layer to the common shape; limb_heads: only limbs have heads."""
     ix = node_index(graph)
     nodes = [nets[k] for k in ix.kinds]
@@ -450,7 +454,7 @@ def wire(nets: nn.ModuleDict, graph, rounds: int, encode_weight=None, head_weigh
         cells = [n.gru for n in nodes]
         gru = (*per_node_linear(cells, ix.type_of, lambda c: c.weight_ih, lambda c: c.bias_ih),
                *per_node_linear(cells, ix.type_of, lambda c: c.weight_hh, lambda c: c.bias_hh))
-    return Wired(encode=(w_enc, b_enc + ports[:, None]),
+    return NodeLayers(encode=(w_enc, b_enc + ports[:, None]),
                  own=per_node_linear([n.own for n in nodes], ix.type_of),
                  up=per_node_linear([n.up for n in limbs], ix.limb_type)[0],
                  down=per_node_linear([n.down for n in limbs], ix.limb_type)[0],
@@ -459,12 +463,12 @@ def wire(nets: nn.ModuleDict, graph, rounds: int, encode_weight=None, head_weigh
                  gru=gru, rounds=rounds)
 
 
-def encode(w: Wired, x) -> torch.Tensor:
+def encode_nodes(w: NodeLayers, x) -> torch.Tensor:
     """Step 1: z = tanh(W_enc x + p) for every node: x (N, n, in) -> z (N, n, H)."""
     return torch.tanh(torch.baddbmm(w.encode[1], x, w.encode[0]))
 
 
-def propagate(w: Wired, z) -> torch.Tensor:
+def propagate(w: NodeLayers, z) -> torch.Tensor:
     """Step 2: `rounds` rounds of limbs -> body, then body -> limbs, on the star design graph: (N, n, H)."""
     for _ in range(w.rounds):
         body, limbs = z.split([1, len(z) - 1])                                             # (1, n, H), (N - 1, n, H)
@@ -476,7 +480,7 @@ def propagate(w: Wired, z) -> torch.Tensor:
     return z
 
 
-def gru(w: Wired, z, h) -> torch.Tensor:
+def update_memory(w: NodeLayers, z, h) -> torch.Tensor:
     """Step 3 (policy): every node's memory h <- GRUCell(z, h) (torch.nn.GRUCell's gates r, u, n): (N, n, H)."""
     w_ih, b_ih, w_hh, b_hh = w.gru
     H = h.shape[-1]
@@ -487,7 +491,7 @@ def gru(w: Wired, z, h) -> torch.Tensor:
     return c + u * (h - c)                                                                   # (1 - u) c + u h
 
 
-def head(w: Wired, z) -> torch.Tensor:
+def read_out(w: NodeLayers, z) -> torch.Tensor:
     """Step 3: each node's output from its state: (N, n, H) -> (N, n, out)."""
     return torch.baddbmm(w.head[1], z, w.head[0])
 
@@ -522,7 +526,7 @@ def node_obs_scale(graph) -> torch.Tensor:
 
 
 class PolicyOnDesign:
-    """The policy wired for one design (see `Wired`); its memory is node-major, (N, n, H)."""
+    """The policy on one design (see `NodeLayers`); its memory is node-major, (N, n, H)."""
 
     def __init__(self, policy: ModularPolicy, graph):
         ix, cfg = node_index(graph), policy.cfg
@@ -536,7 +540,7 @@ class PolicyOnDesign:
             m, r = x.chunk(2, 0)
             return torch.cat([pad_to(m, ACT_WIDTH, dim=0), pad_to(r, ACT_WIDTH, dim=0)])
 
-        self.w = wire(policy.nets, graph, cfg.rounds, encode_weight, lambda l: head_rows(l.weight),
+        self.w = gather_layers(policy.nets, graph, cfg.rounds, encode_weight, lambda l: head_rows(l.weight),
                       lambda l: head_rows(l.bias), limb_heads=True)
         self.obs_scale = node_obs_scale(graph)                                              # (N, 1, O)
         joints = flat_index(graph, (0, LEG_ACT_DIM, WHEEL_ACT_DIM), 2 * ACT_WIDTH, limbs_only=True)  # (A,)
@@ -545,9 +549,9 @@ class PolicyOnDesign:
     def step(self, obs: dict, h):
         """One control step: mean (n, A), log_std (n, A), next memory (N, n, H) from memory h (N, n, H)."""
         o = nodes_first(obs, self.kinds, OBS_WIDTH) * self.obs_scale                        # (N, n, O)
-        z = propagate(self.w, encode(self.w, torch.cat([o, h], -1)))                        # (N, n, H)
-        h = gru(self.w, z, h)                                                               # (N, n, H)
-        mean, raw = to_flat(head(self.w, h[1:]), self.action_index).chunk(2, -1)           # (n, A) x 2
+        z = propagate(self.w, encode_nodes(self.w, torch.cat([o, h], -1)))                  # (N, n, H)
+        h = update_memory(self.w, z, h)                                                     # (N, n, H)
+        mean, raw = to_flat(read_out(self.w, h[1:]), self.action_index).chunk(2, -1)       # (n, A) x 2
         lo, hi = self.log_std_range
         return mean, lo + (hi - lo) * torch.sigmoid(raw), h                                 # log_std in [lo, hi]
 
@@ -572,12 +576,12 @@ def model_input_index(graph) -> torch.Tensor:
 
 
 class ModelOnDesign:
-    """The model wired for one design (see `Wired`): f(s, a) -> s_next on flat states (n, S)."""
+    """The model on one design (see `NodeLayers`): f(s, a) -> s_next on flat states (n, S)."""
 
     def __init__(self, model: ModularModel, graph):
         self.index = model_input_index(graph)                                               # (N, I)
         width, out_width = self.index.shape[1], max(model.OUT_DIMS.values())
-        self.w = wire(model.nets, graph, model.cfg.rounds, lambda l: pad_to(l.weight, width),
+        self.w = gather_layers(model.nets, graph, model.cfg.rounds, lambda l: pad_to(l.weight, width),
                       lambda l: pad_to(l.weight, out_width, dim=0),
                       lambda l: pad_to(l.bias, out_width))
         kinds = [k for k, _ in graph.nodes]
@@ -590,8 +594,8 @@ class ModelOnDesign:
         """The network proper: the normalised change of state (n, S)."""
         src = torch.cat([s, a.clamp(-1.0, 1.0), s.new_zeros(len(s), 1)], 1)                 # (n, S + A + 1)
         x = (src[:, self.index] - self.in_mean) / self.in_std                               # (n, N, I)
-        z = propagate(self.w, encode(self.w, x.transpose(0, 1)))                            # (N, n, H)
-        return to_flat(head(self.w, z), self.out_index)                                     # (n, S)
+        z = propagate(self.w, encode_nodes(self.w, x.transpose(0, 1)))                      # (N, n, H)
+        return to_flat(read_out(self.w, z), self.out_index)                                 # (n, S)
 
     def __call__(self, s, a) -> torch.Tensor:
         """s_t+1 = s_t + Delta(s_t, a_t): (n, S), differentiable in s and a."""
@@ -599,17 +603,10 @@ class ModelOnDesign:
 
 
 # ----------------------------------------------------------------------------
-# Entry point (the benchmarks and the profiler live in bench.py)
+# Entry point: parameter counts (speed: python tools/bench.py --networks)
 # ----------------------------------------------------------------------------
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--bench", action="store_true", help="time hexapod roll-outs and model fitting, "
-                        "and the default run's policy, BC and model steps (forwards to: python bench.py --networks)")
-    parser.add_argument("--profile", choices=("policy", "bc", "model"),
-                        help="print torch.profiler's operator table of 3 default-run steps of this kind")
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
-    args = parser.parse_args()
-    torch.set_num_threads(args.threads)
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
     policy, model = ModularPolicy(), ModularModel()
     for name, net in (("policy", policy), ("model", model)):
         per_type = "  ".join(f"{k}={count_parameters(net.nets[k])}" for k in TYPES)
@@ -618,10 +615,6 @@ def main():
         g = sim2d.design_graph(design)
         print(f"{design:15s} {g.code}  nodes={1 + g.n_legs + g.n_wheels}  S={g.state_dim:2d}  "
               f"A={g.action_dim:2d}  policy={count_parameters(policy)}  model={count_parameters(model)}")
-    if args.bench or args.profile:
-        import bench
-        bench.main((["--networks"] if args.bench else []) + (["--profile", args.profile] if args.profile else [])
-                   + ["--threads", str(args.threads)])
 
 
 if __name__ == "__main__":

@@ -19,15 +19,13 @@ in Algorithm 1's order:
     evaluate_iteration       not in Algorithm 1: Sec. IV's distance in 200 steps, per iteration
 
 Not in the paper, each behind a switch and kept together in the last section of
-this file.  On by default (docs/stability.md measured them): the first model
-also sees the clone's roll-outs (`--clone-data`, `add_clone_rollouts`) and an
-improvement check that keeps the previous policy when the new one does worse in
-the simulator (`--keep-better`, `improvement_check`).  `--clone-data off
---keep-better off` is the paper's Algorithm 1.  Switches that were measured
-and did not help (an ensemble of models, a trust region, contact features as
-model inputs, a critic that bootstraps the T-step model return) have left the
-code; their rows are in docs/ablations.md and docs/stability.md with the last
-commit that has them.
+this file, both on by default (docs/results.md gives their measurements): the
+first model also sees the clone's roll-outs (`--clone-data`,
+`add_clone_rollouts`) and an improvement check that keeps the previous policy
+when the new one does worse in the simulator (`--keep-better`,
+`improvement_check`).  `--clone-data off --keep-better off` is the paper's
+Algorithm 1.  Mechanisms that were measured and did not help are not in the
+code; docs/history/ has their results.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
@@ -51,65 +49,100 @@ from gnn import GNNConfig, ModularModel, ModularPolicy
 
 # ----------------------------------------------------------------------------
 # Config: every knob of Algorithm 1 (train.py makes each field a flag; the
-# comment after a field is its help text: what it is and its usual range)
+# docstring under a field is its help text: what it is and its usual range)
 # ----------------------------------------------------------------------------
 @dataclass
 class Config:
     """Every knob of Algorithm 1.  Defaults: the README's main command."""
 
-    train: tuple[str, ...] = ("leg_none_wheel",)   # d_train: design(s) trained; several sum their RL losses
-    demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain RL (lambda = 0, no pre-training)
-    iters: int = 5                   # outer iterations of Algorithm 1 (paper: 5)
-    seed: int = 0                    # the one seed everything derives from
-    threads: int = 1                 # torch CPU threads; a run's digits depend on it (float sums round
-                                     # differently); 1 is fastest for these small tensors (docs/gnn.md)
+    train: tuple[str, ...] = ("leg_none_wheel",)
+    """d_train: design(s) trained; several sum their RL losses"""
+    demos: tuple[str, ...] = ()
+    """D_demo: demonstration designs; none = plain RL (lambda = 0, no pre-training)"""
+    iters: int = 5
+    """outer iterations of Algorithm 1 (paper: 5)"""
+    seed: int = 0
+    """the one seed everything derives from"""
+    threads: int = 1
+    """torch CPU threads; a run's digits depend on it (float sums round differently); 1 is fastest for
+    these small tensors (docs/gnn.md)"""
     # Line 2 / Sec. III-B: random spline actions
-    random_episodes: int = 32        # random-action episodes per training design (paper: not stated); 8-64
-    episode_steps: int = 100         # control steps per collected episode (paper: 100)
-    random_action_std: float = 1.0   # std of the spline knots, in normalised action units; 0.5-1
+    random_episodes: int = 32
+    """random-action episodes per training design (paper: not stated); 8-64"""
+    episode_steps: int = 100
+    """control steps per collected episode (paper: 100)"""
+    random_action_std: float = 1.0
+    """std of the spline knots, in normalised action units; 0.5-1"""
     # Lines 27-29: data from the policy
-    policy_episodes: int = 16        # policy episodes per design and iteration, once without and once with noise
-    policy_noise_std: float = 0.3    # knot std of the policy data's correlated noise; below random_action_std
+    policy_episodes: int = 16
+    """policy episodes per design and iteration, once without and once with noise"""
+    policy_noise_std: float = 0.3
+    """knot std of the policy data's correlated noise; below random_action_std"""
     # Demonstrations (Sec. III-D): the paper's 50 x 100
-    demo_episodes: int = 50          # demonstration episodes per demo design (paper: 50)
-    demo_steps: int = 100            # control steps per demonstration episode (paper: 100)
-    demo_noise: float = 0.15         # std of smooth noise on the demonstrators' executed, not recorded,
-                                     # actions, so T_demo shows recoveries (DART); 0 = the paper; 0-0.3
+    demo_episodes: int = 50
+    """demonstration episodes per demo design (paper: 50)"""
+    demo_steps: int = 100
+    """control steps per demonstration episode (paper: 100)"""
+    demo_noise: float = 0.15
+    """std of smooth noise on the demonstrators' executed, not recorded, actions, so T_demo shows
+    recoveries (DART); 0 = the paper; 0-0.3"""
     # Line 1: behavioural cloning
-    bc_steps: int = 1000             # Adam steps of pre-training; 0 skips line 1; 300-3000
+    bc_steps: int = 1000
+    """Adam steps of pre-training; 0 skips line 1; 300-3000"""
     # Line 5: model learning
-    model_steps: int = 1500          # model Adam steps at the first iteration; 500-5000
-    finetune_steps: int = 500        # model Adam steps in later iterations (fine-tuning); 0-2000
-    model_batch: int = 512           # transitions per design per model step; 128-2048
-    model_lr: float = 1e-3           # model learning rate; 1e-4 to 3e-3
+    model_steps: int = 1500
+    """model Adam steps at the first iteration; 500-5000"""
+    finetune_steps: int = 500
+    """model Adam steps in later iterations (fine-tuning); 0-2000"""
+    model_batch: int = 512
+    """transitions per design per model step; 128-2048"""
+    model_lr: float = 1e-3
+    """model learning rate; 1e-4 to 3e-3"""
     # Lines 7-26: policy optimisation
-    policy_steps: int = 120          # K, policy gradient steps per iteration; 50-1000
-    horizon: int = 20                # T, model roll-out length (truncated BPTT window); 5-50, at most
-                                     # episode_steps and eval_steps
-    batch: int = 64                  # N_batch, initial states per policy step and design; at most buffer_size
-    buffer_size: int = 256           # |B|, initial states with hidden states per design
-    update_rate: int = 10            # every this many steps, refresh half of B (lines 22-25)
-    policy_lr: float = 1e-3          # learning rate at the start of every policy phase (adapted, Sec. III-J)
-    lr_drop: float = 0.5             # factor on the learning rate at every validation revert; 0-1
-    grad_clip: float = 10.0          # max gradient norm of a policy step (BPTT through T model steps)
-    validate_every: int = 20         # policy steps between validation checks
-    validation_multiple: int = 10    # validation set = this many batches of initial states (paper: 10)
-    il_weight: float = 10.0          # lambda at iteration 1 (eqn. RLIL_loss); 1-10
-    il_decay: float = 0.5            # lambda <- il_decay * lambda after every iteration (line 30); 0-1
-    il_batch: int = 32               # demo windows per design per step
-    il_window: int = 8               # control steps per demo window (the policy is recurrent); at most demo_steps
-    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J); 0-0.1
+    policy_steps: int = 120
+    """K, policy gradient steps per iteration; 50-1000"""
+    horizon: int = 20
+    """T, model roll-out length (truncated BPTT window); 5-50, at most episode_steps and eval_steps"""
+    batch: int = 64
+    """N_batch, initial states per policy step and design; at most buffer_size"""
+    buffer_size: int = 256
+    """|B|, initial states with hidden states per design"""
+    update_rate: int = 10
+    """every this many steps, refresh half of B (lines 22-25)"""
+    policy_lr: float = 1e-3
+    """learning rate at the start of every policy phase (adapted, Sec. III-J)"""
+    lr_drop: float = 0.5
+    """factor on the learning rate at every validation revert; 0-1"""
+    grad_clip: float = 10.0
+    """max gradient norm of a policy step (BPTT through T model steps)"""
+    validate_every: int = 20
+    """policy steps between validation checks"""
+    validation_multiple: int = 10
+    """validation set = this many batches of initial states (paper: 10)"""
+    il_weight: float = 10.0
+    """lambda at iteration 1 (eqn. RLIL_loss); 1-10"""
+    il_decay: float = 0.5
+    """lambda <- il_decay * lambda after every iteration (line 30); 0-1"""
+    il_batch: int = 32
+    """demo windows per design per step"""
+    il_window: int = 8
+    """control steps per demo window (the policy is recurrent); at most demo_steps"""
+    entropy_weight: float = 0.01
+    """weight of the entropy penalty on demo observations (Sec. III-J); 0-0.1"""
     # Evaluation (Sec. IV): distance in 200 control steps
-    eval_episodes: int = 8           # perturbed starts per evaluation
-    eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
+    eval_episodes: int = 8
+    """perturbed starts per evaluation"""
+    eval_steps: int = 200
+    """control steps per evaluation (paper: 200 = 16.7 s)"""
     # Not in the paper (the last section of this file); off = the paper
-    clone_data: bool = True          # the first model also fits the cloned policy's roll-outs, collected
-                                     # after line 1 as lines 28-29 collect (no effect without demos); off = the paper
-    keep_better: bool = True         # after lines 28-29, keep the previous policy when the new one's noiseless
-                                     # roll-outs return less than the kept one's, minus improvement_margin;
-                                     # off = the paper
-    improvement_margin: float = 0.0  # with keep_better: return (about metres per episode) a new policy may
-                                     # lose and still be kept; 0-2
+    clone_data: bool = True
+    """the first model also fits the cloned policy's roll-outs, collected after line 1 as lines 28-29
+    collect (no effect without demos); off = the paper"""
+    keep_better: bool = True
+    """after lines 28-29, keep the previous policy when the new one's noiseless roll-outs return less
+    than the kept one's, minus improvement_margin; off = the paper"""
+    improvement_margin: float = 0.0
+    """with keep_better: return (about metres per episode) a new policy may lose and still be kept; 0-2"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -226,7 +259,8 @@ def new_seed(rng: np.random.Generator) -> int:
 
 
 def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
-    """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over 100 steps."""
+    """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over an
+    episode (the paper's 100 steps: cfg.episode_steps)."""
     graph = sim2d.design_graph(design)
     actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
                                           std=cfg.random_action_std)                  # (E, T, A)
@@ -243,7 +277,7 @@ class PolicyActor:
     def __init__(self, policy: ModularPolicy, design: str, n: int, noise: np.ndarray | None = None):
         graph, self.noise = sim2d.design_graph(design), noise
         with torch.no_grad():
-            self.policy = policy.wire(graph)                              # the weights do not change in an episode
+            self.policy = policy.on_design(graph)                              # the weights do not change in an episode
         self.hidden = policy.initial_hidden(n, graph)                     # (nodes, n, H)
 
     @torch.no_grad()
@@ -326,7 +360,7 @@ def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int, determini
     term sees them unclipped, which keeps a gradient that pulls saturated
     commands back into range.
     """
-    pi, f = policy.wire(graph), model.wire(graph)           # weights gathered along the design's nodes once
+    pi, f = policy.on_design(graph), model.on_design(graph)           # weights gathered along the design's nodes once
     states, actions, h = [s0], [], h0
     for _ in range(horizon):
         s = states[-1]
@@ -406,24 +440,24 @@ class Buffer:
         return self.states[i], self.hidden[:, i]                                # (n, S), (nodes, n, H)
 
 
-def sample_sim_states(data: Trajectories, n: int, rng: np.random.Generator) -> torch.Tensor:
-    """(n, S) states visited in the simulator (T_train), the 'random initial states'."""
-    s = data.states.reshape(-1, data.states.shape[-1])
+def sample_sim_states(traj: Trajectories, n: int, rng: np.random.Generator) -> torch.Tensor:
+    """(n, S) states one design visited in the simulator (its T_train), the 'random initial states'."""
+    s = traj.states.reshape(-1, traj.states.shape[-1])
     return s[torch.from_numpy(rng.integers(len(s), size=n))]
 
 
-def init_buffer(policy, data: Trajectories, cfg: Config, rng) -> Buffer:
-    """Algorithm 1 line 7: random initial states, zero hidden states."""
-    graph = sim2d.design_graph(data.design)
-    return Buffer(sample_sim_states(data, cfg.buffer_size, rng), policy.initial_hidden(cfg.buffer_size, graph))
+def init_buffer(policy, traj: Trajectories, cfg: Config, rng) -> Buffer:
+    """Algorithm 1 line 7: random initial states of one design's T_train, zero hidden states."""
+    graph = sim2d.design_graph(traj.design)
+    return Buffer(sample_sim_states(traj, cfg.buffer_size, rng), policy.initial_hidden(cfg.buffer_size, graph))
 
 
 @torch.no_grad()
-def refresh_buffer(buffer: Buffer, policy, model, data: Trajectories, cfg: Config, rng) -> None:
+def refresh_buffer(buffer: Buffer, policy, model, traj: Trajectories, cfg: Config, rng) -> None:
     """Algorithm 1 lines 23-24: run the policy T/2 steps in the model from new random
     states and overwrite the second half of B with the states and hidden states reached."""
-    graph, half = sim2d.design_graph(data.design), cfg.buffer_size // 2
-    s0 = sample_sim_states(data, cfg.buffer_size - half, rng)
+    graph, half = sim2d.design_graph(traj.design), cfg.buffer_size // 2
+    s0 = sample_sim_states(traj, cfg.buffer_size - half, rng)
     _, s, h = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, cfg.horizon // 2)
     buffer.states[half:], buffer.hidden[:, half:] = s, h
 
@@ -555,7 +589,7 @@ def model_bias(policy: ModularPolicy, model, design: str, run: sim2d.Episodes, c
     actions = torch.as_tensor(run.actions, dtype=torch.float32)                   # (n, steps, A)
     s0 = states[:, 0]
     _, s_T, _ = rollout(policy, model, s0, policy.initial_hidden(len(s0), graph), graph, T, deterministic=True)
-    s, f = s0, model.wire(graph)
+    s, f = s0, model.on_design(graph)
     for t in range(T):                                          # the simulator's actions, open loop
         s = f(s, actions[:, t])
     return {"model_progress_m": float((s_T[:, 0] - s0[:, 0]).mean()),
@@ -614,7 +648,8 @@ class Run:
         return {"numpy": self.rng.bit_generator.state, "torch": torch.get_rng_state()}
 
     @staticmethod
-    def rng_from_state(state: dict) -> np.random.Generator:
+    def restore_rngs(state: dict) -> np.random.Generator:
+        """Both generators of `rng_state`: sets torch's global one, returns the numpy one."""
         rng = np.random.default_rng()
         rng.bit_generator.state = state["numpy"]
         torch.set_rng_state(state["torch"])

@@ -30,18 +30,17 @@ The policy's memory: `Memoryless` runs gnn.ModularPolicy with its GRU memory
 reset to h = 0 before every step, in training and in evaluation, so every
 sample's log-probability is one batched forward pass.  Handling the memory as
 CleanRL's LSTM PPO does (re-running each robot's sequence in order for every
-minibatch) cost 20-40x more per minibatch on this CPU (`python bench.py
+minibatch) costs 20-40x more per minibatch on a CPU (`python tools/bench.py
 --ppo`; docs/ppo.md).
 
 CPU, one thread (the command line is train.py):
     python train.py --train hexapod --method ppo                  # 2 M simulator steps (docs/ppo.md)
     python train.py --train car --method ppo --preset tiny        # the car learns to drive
     python train.py --train leg_none_wheel --method ppo --demos hexapod car   # PPO+IL
-    python bench.py --ppo        # one iteration's collection and update, timed (or: ppo_minimal.py --bench)
+    python tools/bench.py --ppo                                   # one iteration's collection and update, timed
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import time
@@ -59,55 +58,84 @@ from modular_rlil_minimal import (Config, check_ranges, design_codes, eval_seed,
 
 
 # ----------------------------------------------------------------------------
-# Config: every knob of PPO (train.py makes each field a flag; the comment
-# after a field is its help text).  Defaults: CleanRL's ppo_continuous_action.py
-# (Huang et al. 2022) unless the comment says otherwise.
+# Config: every knob of PPO (train.py makes each field a flag; the docstring
+# under a field is its help text).  Defaults: CleanRL's ppo_continuous_action.py
+# (Huang et al. 2022) unless the docstring says otherwise.
 # ----------------------------------------------------------------------------
 @dataclass
 class PPOConfig:
     """Every knob of the PPO baseline.  Defaults: 2 M simulator steps of the hexapod."""
 
-    train: tuple[str, ...] = ("hexapod",)   # the one design trained
-    seed: int = 0                    # the one seed everything derives from
-    threads: int = 1                 # torch CPU threads; results depend on it (float sums round differently)
-    env_steps: int = 2_000_000       # simulator steps (robot control steps) of training, evaluation excluded
-    robots: int = 16                 # N, robots run side by side (PPO's "actors"); 8-64
-    episode_steps: int = 200         # T, steps per episode; one episode per robot per iteration, so N T
-                                     # samples per iteration (CleanRL: 2048); 200 = the evaluation's length
-    gamma: float = 0.99              # discount gamma; 0.99 = a horizon of about 100 steps (8 s)
-    gae_lambda: float = 0.95         # GAE's lambda (eqn. 11); 0.9-1
-    clip_coef: float = 0.2           # epsilon of the clipped surrogate (eqn. 7); 0.1-0.3
-    epochs: int = 10                 # K, passes over each iteration's samples
-    minibatches: int = 16            # minibatches per epoch, of M = N T / minibatches samples each (CleanRL: 32)
-    lr: float = 3e-4                 # Adam learning rate of policy and value network
-    anneal_lr: bool = True           # decay the learning rate linearly to 0 over the run
-    vf_coef: float = 0.5             # c1, weight of the value loss (eqn. 9)
-    ent_coef: float = 0.0            # c2, weight of the entropy bonus (eqn. 9)
-    max_grad_norm: float = 0.5       # gradient-norm clip of every Adam step
-    norm_adv: bool = True            # normalise advantages per minibatch
-    init_std: float = 0.6            # the policy's std at the start (its log-std heads' bias; gnn's
-                                     # initialisation gives 0.29); 0.3-1 (docs/ppo.md, Tuning)
-    eval_every: int = 50_000         # simulator steps between evaluations (rounded to whole iterations)
+    train: tuple[str, ...] = ("hexapod",)
+    """the one design trained"""
+    seed: int = 0
+    """the one seed everything derives from"""
+    threads: int = 1
+    """torch CPU threads; results depend on it (float sums round differently)"""
+    env_steps: int = 2_000_000
+    """simulator steps (robot control steps) of training, evaluation excluded"""
+    robots: int = 16
+    """N, robots run side by side (PPO's "actors"); 8-64"""
+    episode_steps: int = 200
+    """T, steps per episode; one episode per robot per iteration, so N T samples per iteration (CleanRL:
+    2048); 200 = the evaluation's length"""
+    gamma: float = 0.99
+    """discount gamma; 0.99 = a horizon of about 100 steps (8 s)"""
+    gae_lambda: float = 0.95
+    """GAE's lambda (eqn. 11); 0.9-1"""
+    clip_coef: float = 0.2
+    """epsilon of the clipped surrogate (eqn. 7); 0.1-0.3"""
+    epochs: int = 10
+    """K, passes over each iteration's samples"""
+    minibatches: int = 16
+    """minibatches per epoch, of M = N T / minibatches samples each (CleanRL: 32)"""
+    lr: float = 3e-4
+    """Adam learning rate of policy and value network"""
+    anneal_lr: bool = True
+    """decay the learning rate linearly to 0 over the run"""
+    vf_coef: float = 0.5
+    """c1, weight of the value loss (eqn. 9)"""
+    ent_coef: float = 0.0
+    """c2, weight of the entropy bonus (eqn. 9)"""
+    max_grad_norm: float = 0.5
+    """gradient-norm clip of every Adam step"""
+    norm_adv: bool = True
+    """normalise advantages per minibatch"""
+    init_std: float = 0.6
+    """the policy's std at the start (its log-std heads' bias; gnn's initialisation gives 0.29); 0.3-1
+    (docs/ppo.md, Tuning)"""
+    eval_every: int = 50_000
+    """simulator steps between evaluations (rounded to whole iterations)"""
     # Demonstrations (PPO+IL, after DAPG, Rajeswaran et al. 2018): Algorithm 1's T_demo, line 1 and eqn. (IL_loss)
-    demos: tuple[str, ...] = ()      # D_demo: demonstration designs; none = plain PPO (no pre-training, lambda = 0)
-    demo_episodes: int = 50          # demonstration episodes per demo design (paper: 50)
-    demo_steps: int = 100            # control steps per demonstration episode (paper: 100)
-    demo_noise: float = 0.15         # std of smooth noise on the demonstrators' executed, not recorded,
-                                     # actions, so T_demo shows recoveries (DART); 0 = the paper; 0-0.3
-    bc_steps: int = 1000             # Adam steps of behavioural cloning before PPO (Algorithm 1's line 1, at
-                                     # its policy_lr 1e-3); 0 skips it; 300-3000
-    il_weight: float = 1.0           # lambda at PPO iteration 1 (L = L_PPO + lambda (L_IL + entropy_weight
-                                     # S_demo)); 0.1-10
-    il_decay: float = 0.99           # lambda <- il_decay * lambda after every PPO iteration; 0.99 halves it
-                                     # every 69 iterations, 11 % of the default run's 625 (tiny: 0.7, every
-                                     # 2 of 20); 0-1
-    il_batch: int = 32               # demo windows per design per minibatch step
-    il_window: int = 8               # control steps per demo window (consecutive pairs: the memoryless policy
-                                     # sees each alone); at most demo_steps
-    entropy_weight: float = 0.01     # weight of the entropy penalty on demo observations (Sec. III-J); 0-0.1
+    demos: tuple[str, ...] = ()
+    """D_demo: demonstration designs; none = plain PPO (no pre-training, lambda = 0)"""
+    demo_episodes: int = 50
+    """demonstration episodes per demo design (paper: 50)"""
+    demo_steps: int = 100
+    """control steps per demonstration episode (paper: 100)"""
+    demo_noise: float = 0.15
+    """std of smooth noise on the demonstrators' executed, not recorded, actions, so T_demo shows
+    recoveries (DART); 0 = the paper; 0-0.3"""
+    bc_steps: int = 1000
+    """Adam steps of behavioural cloning before PPO (Algorithm 1's line 1, at its policy_lr 1e-3); 0
+    skips it; 300-3000"""
+    il_weight: float = 1.0
+    """lambda at PPO iteration 1 (L = L_PPO + lambda (L_IL + entropy_weight S_demo)); 0.1-10"""
+    il_decay: float = 0.99
+    """lambda <- il_decay * lambda after every PPO iteration; 0.99 halves it every 69 iterations, 11 %
+    of the default run's 625 (tiny: 0.7, every 2 of 20); 0-1"""
+    il_batch: int = 32
+    """demo windows per design per minibatch step"""
+    il_window: int = 8
+    """control steps per demo window (consecutive pairs: the memoryless policy sees each alone); at most
+    demo_steps"""
+    entropy_weight: float = 0.01
+    """weight of the entropy penalty on demo observations (Sec. III-J); 0-0.1"""
     # Evaluation (Sec. IV of Whitman & Choset): distance in 200 control steps, as for Algorithm 1
-    eval_episodes: int = 8           # perturbed starts per evaluation
-    eval_steps: int = 200            # control steps per evaluation (paper: 200 = 16.7 s)
+    eval_episodes: int = 8
+    """perturbed starts per evaluation"""
+    eval_steps: int = 200
+    """control steps per evaluation (paper: 200 = 16.7 s)"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -157,7 +185,7 @@ def iterations(cfg: PPOConfig) -> int:
 class Memoryless(torch.nn.Module):
     """pi_theta(a | o_t): gnn.ModularPolicy with its memory reset to h = 0 before every step.
 
-    Has the policy's `initial_hidden`, `act` and `wire`, so modular_rlil_minimal's
+    Has the policy's `initial_hidden`, `act` and `on_design`, so modular_rlil_minimal's
     PolicyActor and evaluate_policy run it unchanged; `distribution` gives the
     Gaussian (mean, log_std), each (n, A), of a batch of observations.
     """
@@ -186,12 +214,12 @@ class Memoryless(torch.nn.Module):
         log_prob = gaussian_log_prob(mean, log_std, actions_seq.flatten(0, 1))
         return log_prob.view(n, T), gaussian_entropy(log_std).view(n, T)
 
-    def wire(self, graph) -> "MemorylessOnDesign":
-        return MemorylessOnDesign(self.policy.wire(graph))
+    def on_design(self, graph) -> "MemorylessOnDesign":
+        return MemorylessOnDesign(self.policy.on_design(graph))
 
 
 class MemorylessOnDesign:
-    """`Memoryless` wired for one design (gnn.PolicyOnDesign), as PolicyActor runs it."""
+    """`Memoryless` on one design (gnn.PolicyOnDesign), as PolicyActor runs it."""
 
     def __init__(self, policy: PolicyOnDesign):
         self.policy = policy
@@ -506,21 +534,3 @@ def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None
             if on_evaluation:
                 on_evaluation(run)
     return run
-
-
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--bench", action="store_true", help="time one PPO iteration on the hexapod "
-                        "(forwards to: python bench.py --ppo)")
-    parser.add_argument("--design", default="hexapod")
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
-    args = parser.parse_args()
-    if not args.bench:
-        parser.print_help()
-        return
-    import bench
-    return bench.main(["--ppo", "--design", args.design, "--threads", str(args.threads)])
-
-
-if __name__ == "__main__":
-    main()

@@ -8,11 +8,8 @@ trajectories with random actions" (spline actions) and Sec. IV "Experiments"
 The paper uses IsaacGym in 3-D; this is a pymunk side view (y up, +x forward).
 
     python sim2d.py --design hexapod --action random --gif hexapod.gif
-    python bench.py --world             # the world's speed against bare pymunk (or: sim2d.py --bench)
-    python check_physics.py             # contacts and joints (or: sim2d.py --check-physics)
-
-(`python sim2d.py --bench` and `python sim2d.py --check-physics [...]` still
-work: they forward to bench.py and check_physics.py.)
+    python tools/bench.py --world           # the world's speed against bare pymunk
+    python tools/check_physics.py           # how far contacts and joints give
 
 Conventions used by every other file
 ------------------------------------
@@ -40,9 +37,12 @@ from __future__ import annotations
 import argparse
 import itertools
 import math
+import os
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pymunk
@@ -56,8 +56,8 @@ GRAVITY = 981.0            # cm/s^2
 PHYSICS_DT = 1.0 / 60.0    # s, the paper's simulator step
 STEPS_PER_ACTION = 5       # physics steps one action is held (paper: 5 x 1/60 s)
 CONTROL_DT = PHYSICS_DT * STEPS_PER_ACTION   # 1/12 s per control step
-# Contacts and joints (issue #11).  Each setting below was chosen with
-# `python check_physics.py`: the deepest reach of any shape below the
+# Contacts and joints.  Each setting below was chosen with
+# `python tools/check_physics.py`: the deepest reach of any shape below the
 # ground / the widest pivot-joint gap / the largest joint-limit overshoot, after
 # every pymunk step, over 24 designs x {bang-bang, spline} actions x 8 robots x
 # 200 control steps; targets 2 cm / 1 cm / 0.05 rad.  The figures quoted are
@@ -67,8 +67,8 @@ PHYSICS_SUBSTEPS = 4       # pymunk steps of 1/240 s per 1/60 s physics step (ou
                            # paper's).  pymunk acts on a contact or a joint limit only once it is
                            # already violated, so a foot hitting the ground at ~4 m/s sinks in by
                            # speed x step: 1 sub-step 8.3 cm / 4.5 cm / 0.186 rad, 2: 3.3 / 1.9 /
-                           # 0.104, 3: 2.4 / 1.2 / 0.068.  Costs: the hexapod world runs at about
-                           # 0.6 x the speed of the old 1/60 s, 10-iteration one (docs/world.md)
+                           # 0.104, 3: 2.4 / 1.2 / 0.068.  Cost: the hexapod world runs at about
+                           # 0.6 x the speed of 1 sub-step at 10 solver iterations (docs/world.md)
 SUBSTEP_DT = PHYSICS_DT / PHYSICS_SUBSTEPS   # s, one pymunk step
 SOLVER_ITERATIONS = 5      # per pymunk step (pymunk's default is 10): 3 left pivots 1.25 cm
                            # apart; 10 narrow the widest gap to 0.60 cm but slow the world by 22 %
@@ -95,15 +95,15 @@ WHEEL_MASS = 1.0             # kg, same as one leg (two links)
 LEG_MAX_SPEED = 6.0          # rad/s at action 1 (hip and knee)
 WHEEL_MAX_SPEED = 3.5        # rad/s at action 1: 3.5 * 34.1 cm = 1.19 m/s, close to
                              # the hexapod's tripod gait (docs/world.md)
-LEG_MAX_TORQUE = 1.5e5       # kg cm^2/s^2, motor max_force (unbounded if unset).  4e5 (before
-                             # issue #11) pushed pivots 1.03 cm apart and feet 2.06 cm deep; at 1e5
-                             # the leg_none_wheel demonstrator nose-dives (0.42 m/s, 1.2e5: 0.99)
+LEG_MAX_TORQUE = 1.5e5       # kg cm^2/s^2, motor max_force (unbounded if unset).  4e5 pushes
+                             # pivots 1.03 cm apart and feet 2.06 cm deep; at 1e5 the
+                             # leg_none_wheel demonstrator nose-dives (0.42 m/s, 1.2e5: 0.99)
 WHEEL_MAX_TORQUE = 2e5
 FRICTION = 1.0               # ground, feet, wheels and body
 GROUND_TOP = 0.0             # cm, height of the ground's surface
-GROUND_THICKNESS = 100.0     # cm: the ground is a thick finite segment under y = GROUND_TOP.  The
-                             # old 2 cm one let fast feet tunnel through and hook underneath (26.8
-                             # cm deep at 1/60 s steps); at 1/240 s it allowed 1.97 cm
+GROUND_THICKNESS = 100.0     # cm: the ground is a thick finite segment under y = GROUND_TOP.  A
+                             # 2 cm one lets fast feet tunnel through and hook underneath (26.8 cm
+                             # deep at 1/60 s steps, 1.97 cm at 1/240 s)
 GROUND_X = (-5000.0, 20000.0)   # cm: 50 m behind to 200 m ahead of the start
 FLIP_PITCH = math.pi / 2     # rad: |pitch| beyond this counts as flipped
 ROBOT_CAT, GROUND_CAT = 0b01, 0b10   # collision categories: limbs touch only ground
@@ -132,7 +132,7 @@ W_PITCH = 0.02             # per rad^2 of pitch
 W_EFFORT = 0.002           # per mean squared normalised action
 W_POSE = 0.005             # per mean squared leg-joint distance from nominal (rad^2)
 
-CM = 0.01                  # metres per cm: the state vector is in metres
+M_PER_CM = 0.01            # metres per cm: the state vector is in metres, pymunk in cm
 
 NAMED_DESIGNS = {
     "hexapod": "llllll",
@@ -323,7 +323,7 @@ def forward_kinematics(graph: DesignGraph, s: np.ndarray) -> dict:
     "foot": (N, L, 2), "axle": (N, W, 2)}.  Used to place a perturbed robot on
     the ground and to draw any state trajectory, simulated or model-predicted.
     """
-    x, y, pitch = s[:, 0] / CM, s[:, 1] / CM, s[:, 2]
+    x, y, pitch = s[:, 0] / M_PER_CM, s[:, 1] / M_PER_CM, s[:, 2]
     c, si = np.cos(pitch)[:, None], np.sin(pitch)[:, None]
 
     def to_world(px, py):                 # body-frame points (K,), (K,) -> world (N, K, 2)
@@ -353,7 +353,7 @@ def standing_height(graph: DesignGraph, s: np.ndarray) -> np.ndarray:
     lowest = np.concatenate([fk["corners"][..., 1], fk["knee"][..., 1] - LINK_RADIUS,
                              fk["foot"][..., 1] - FOOT_RADIUS, fk["axle"][..., 1] - WHEEL_RADIUS],
                             axis=1).min(1)
-    return (GROUND_TOP - lowest) * CM
+    return (GROUND_TOP - lowest) * M_PER_CM
 
 
 def nominal_state(graph: DesignGraph) -> np.ndarray:
@@ -443,8 +443,8 @@ def add_body(space: pymunk.Space, body_state) -> pymunk.Body:
     """The robot's body box in body state [x, y, pitch, vx, vy, pitch_rate] (m, rad, s)."""
     x, y, pitch, vx, vy, w = body_state
     body = pymunk.Body(BODY_MASS, pymunk.moment_for_box(BODY_MASS, (BODY_LENGTH, BODY_HEIGHT)))
-    body.position, body.angle = (x / CM, y / CM), pitch
-    body.velocity, body.angular_velocity = (vx / CM, vy / CM), w
+    body.position, body.angle = (x / M_PER_CM, y / M_PER_CM), pitch
+    body.velocity, body.angular_velocity = (vx / M_PER_CM, vy / M_PER_CM), w
     space.add(body)
     _add_shape(space, pymunk.Poly.create_box(body, (BODY_LENGTH, BODY_HEIGHT)))
     return body
@@ -546,9 +546,9 @@ def set_motor_rates(motor_ptrs: list, rates: list[float]) -> None:
     motor_ptrs are the motors' C pointers (`motor._constraint`); rates are
     plain floats (rad/s).  `motor.rate = r` calls pymunk's C function
     cpSimpleMotorSetRate through two layers of Python property code; calling
-    it directly (a private pymunk name, so it lives only here) costs 2.1 µs
-    for a hexapod's 12 motors instead of 7.0 µs (measured with timeit), about
-    as much as the rest of the world's overhead per robot step.
+    it directly (a private pymunk name, so it lives only here) is about 3x
+    cheaper for a hexapod's 12 motors, and that property code cost as much as
+    the rest of the world's overhead per robot step (docs/world.md, Speed).
     tests/test_sim2d.py checks that it moves robots exactly as `motor.rate = r` does.
     """
     list(map(_set_motor_rate, motor_ptrs, rates))
@@ -563,9 +563,9 @@ def step_space(space: pymunk.Space, steps: int) -> None:
     Calls pymunk's C function cpSpaceStep directly.  `space.step` wraps it in
     Python bookkeeping for objects added or removed during a step and for
     post-step callbacks, none of which the world uses; skipping it, 20 calls
-    per control step, made the hexapod world 12 % faster (bench.py --world, two runs:
-    6.9k / 7.1k -> 7.8k / 8.0k robot steps/s).  tests/test_sim2d.py checks
-    that it moves robots exactly as `space.step` does.
+    per control step, makes the hexapod world about 12 % faster (tools/bench.py
+    --world).  tests/test_sim2d.py checks that it moves robots exactly as
+    `space.step` does.
     """
     ptr = space._space
     for _ in range(steps):
@@ -620,7 +620,7 @@ class World:
         wheel = raw[:, 1 + 2 * nl:-1]                          # the static body comes last
         legs = np.stack([thigh[..., 2] - body[:, None, 2], shin[..., 2] - thigh[..., 2],
                          thigh[..., 5] - body[:, None, 5], shin[..., 5] - thigh[..., 5]], -1)
-        return np.concatenate([body[:, :2] * CM, body[:, 2:3], body[:, 3:5] * CM, body[:, 5:6],
+        return np.concatenate([body[:, :2] * M_PER_CM, body[:, 2:3], body[:, 3:5] * M_PER_CM, body[:, 5:6],
                                legs.reshape(self.n, -1), wheel[..., 5] - body[:, None, 5]], 1)
 
     def _observe(self, s: np.ndarray) -> dict:
@@ -783,13 +783,13 @@ def save_gif(graph: DesignGraph, states: np.ndarray, path: str, every: int = 1, 
     graph = design_graph(graph)
     angles = _wheel_angles(graph, states)
     fig, ax = plt.subplots(figsize=(8, 3.4), dpi=80)
-    _style_axes(ax, states[0, 0] / CM)
+    _style_axes(ax, states[0, 0] / M_PER_CM)
     robot, writer = [], PillowWriter(fps=12 // every)
     with writer.saving(fig, path, dpi=fig.dpi):
         for t in range(0, len(states), every):              # per frame: move the view, redraw only the robot
             for artist in robot:
                 artist.remove()
-            _style_axes(ax, states[t, 0] / CM, static=False)
+            _style_axes(ax, states[t, 0] / M_PER_CM, static=False)
             robot = _draw_robot(ax, graph, states[t], angles[t])
             ax.set_title(f"{title or graph.name}   t = {t * CONTROL_DT:4.1f} s   "
                          f"distance = {states[t, 0] - states[0, 0]:5.2f} m", fontsize=13)
@@ -808,7 +808,7 @@ def save_png(graph: DesignGraph, states: np.ndarray, path: str, poses: int = 6, 
     times = np.linspace(0, len(states) - 1, poses).astype(int)
     fig, axes = plt.subplots(1, poses, figsize=(2.6 * poses, 2.5), dpi=100, squeeze=False)
     for ax, t in zip(axes[0], times):
-        _style_axes(ax, states[t, 0] / CM, width=160.0)
+        _style_axes(ax, states[t, 0] / M_PER_CM, width=160.0)
         _draw_robot(ax, graph, states[t], angles[t])
         ax.set_title(f"t = {t * CONTROL_DT:.1f} s, {states[t, 0] - states[0, 0]:.2f} m", fontsize=12)
     fig.suptitle(title or f"{graph.name} ({graph.code}): {states[-1, 0] - states[0, 0]:.2f} m "
@@ -816,6 +816,21 @@ def save_png(graph: DesignGraph, states: np.ndarray, path: str, poses: int = 6, 
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def atomic_write(path, write) -> None:
+    """write(tmp_path) into a temporary file beside `path`, then rename it over `path`: a crash
+    or a full disk never leaves half a file, and a reader sees the old file or the new one."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o644)                     # mkstemp makes 0600 files
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
 
 
 class CliParser(argparse.ArgumentParser):
@@ -826,7 +841,7 @@ class CliParser(argparse.ArgumentParser):
 
 
 def main(argv=None) -> int:
-    parser = CliParser(description="Run one robot in the planar world, or benchmark it.")
+    parser = CliParser(description="Run one robot in the planar world.")
     parser.add_argument("--design", default="hexapod", help="a name (%s) or a 6-letter code of l/w/n"
                         % ", ".join(NAMED_DESIGNS))
     parser.add_argument("--steps", type=int, default=200, help="control steps of 1/12 s (200 = 16.7 s)")
@@ -835,19 +850,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", help="write an animation of the run to this path")
     parser.add_argument("--png", help="write six snapshots of the run to this path")
-    parser.add_argument("--bench", action="store_true", help="time the world against bare pymunk "
-                        "(forwards to: python bench.py --world)")
-    parser.add_argument("--check-physics", action="store_true", help="measure ground penetration, joint "
-                        "gaps and limit overshoot under aggressive actions (forwards to: python "
-                        "check_physics.py; --check-physics --help)")
-    argv = sys.argv[1:] if argv is None else list(argv)
-    if "--check-physics" in argv:
-        import check_physics
-        return check_physics.main([a for a in argv if a != "--check-physics"])
     args = parser.parse_args(argv)
-    if args.bench:
-        import bench
-        return bench.main(["--world"])
     try:
         graph = design_graph(args.design)
     except ValueError as e:

@@ -103,9 +103,9 @@ def test_hexapod_walks_an_alternating_tripod_gait(default_demos):
 def test_feedback_corrects_pitch_height_and_speed():
     cfg = demos.DemoConfig()
     hip_x = np.array([38.0, 0.0, -38.0])
-    level = demos.stance_height(np.array([[0.43]]), np.array([[0.0]]), hip_x, 0.43, cfg)
-    nose_up = demos.stance_height(np.array([[0.43]]), np.array([[0.1]]), hip_x, 0.43, cfg)
-    sagging = demos.stance_height(np.array([[0.40]]), np.array([[0.0]]), hip_x, 0.43, cfg)
+    level = demos.stance_depth(np.array([[0.43]]), np.array([[0.0]]), hip_x, 0.43, cfg)
+    nose_up = demos.stance_depth(np.array([[0.43]]), np.array([[0.1]]), hip_x, 0.43, cfg)
+    sagging = demos.stance_depth(np.array([[0.40]]), np.array([[0.0]]), hip_x, 0.43, cfg)
     assert nose_up[0, 0] < level[0, 0] and nose_up[0, 2] > level[0, 2]   # front shorter, rear longer
     assert np.all(sagging > level)
     slow, fast = demos.modulated_step_size(1.0, np.array([0.5, 1.5]), cfg)

@@ -12,7 +12,7 @@ import torch
 
 import gnn
 import sim2d
-from bench import random_transitions
+from tools.bench import random_transitions
 
 # The named designs, the extremes (all legs, all wheels, one limb) and a fixed sample of the 728.
 CODES = sorted(set(sim2d.NAMED_DESIGNS.values()) | {"llllll", "wwwwww", "nnlnnn", "nnnnnw"}
@@ -132,7 +132,7 @@ def test_node_index_is_each_nodes_type_and_port_and_made_once():
 
 @pytest.mark.parametrize("code", ["lnwwnl", "llllll", "wnwwnw", "nnnnnw", "llwwll"])
 def test_batched_path_equals_the_node_by_node_computation(code):
-    """The wired path training runs (gathered, zero-padded weights, one batched product per
+    """The batched path training runs (gathered, zero-padded weights, one batched product per
     layer) computes what `node_by_node` computes with each node's own type's modules."""
     torch.manual_seed(0)
     graph, n = sim2d.design_graph(code), 4
@@ -329,7 +329,7 @@ def test_gaussian_log_prob_and_entropy_by_hand():
 def test_bench_default_run_steps_run_against_todays_algorithm():
     """bench.py measures the code the training runs; a step that no longer runs there (a removed
     function, a changed signature) must fail here, not only when someone benchmarks."""
-    import bench
+    from tools import bench
     import modular_rlil_minimal as rlil
     cfg = rlil.preset("tiny", train=("lnwwnl",), demos=("llllll", "wnwwnw"))
     steps = bench.default_run_steps(cfg)

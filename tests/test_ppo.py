@@ -20,8 +20,8 @@ import gnn
 import modular_rlil_minimal as rlil
 import ppo_minimal as ppo
 import sim2d
-import sweeps
 import train
+from experiments import run_folders, sweeps
 
 
 def tiny(**kw) -> ppo.PPOConfig:
@@ -173,20 +173,20 @@ def smoke(**kw) -> ppo.PPOConfig:
 
 
 def test_ppo_run_writes_every_output_resumes_and_evaluates(tmp_path):
-    whole = train.train(smoke(), tmp_path / "whole", log=quiet)
-    for name in train.OUTPUTS:
+    whole = train.run(smoke(), tmp_path / "whole", log=quiet)
+    for name in run_folders.OUTPUTS:
         assert (tmp_path / "whole" / name).stat().st_size > 0, name
     saved = json.loads((tmp_path / "whole" / "metrics.json").read_text())
     assert saved["config"]["method"] == "ppo" and saved["config"]["env_steps"] == 160
     assert [(r["iteration"], r["sim_steps"]) for r in saved["iterations"]] == [(0, 0), (1, 80), (2, 160)]
-    train.train(smoke(env_steps=80), tmp_path / "split", log=quiet)
-    resumed = train.train(smoke(), tmp_path / "split", resume=True, log=quiet)
+    train.run(smoke(env_steps=80), tmp_path / "split", log=quiet)
+    resumed = train.run(smoke(), tmp_path / "split", resume=True, log=quiet)
     assert len(resumed) == 3
-    again = train.train(smoke(), tmp_path / "again", log=quiet)
+    again = train.run(smoke(), tmp_path / "again", log=quiet)
     assert strip_times(again) == strip_times(whole)                  # same seed, same numbers
-    train.train(smoke(env_steps=80), tmp_path / "short", log=quiet)   # a finished run of another budget
+    train.run(smoke(env_steps=80), tmp_path / "short", log=quiet)   # a finished run of another budget
     (tmp_path / "unfinished").mkdir()                                # the split run before its resume:
-    train.train(smoke(env_steps=80), tmp_path / "unfinished" / "run", log=quiet)
+    train.run(smoke(env_steps=80), tmp_path / "unfinished" / "run", log=quiet)
     meta = json.loads((tmp_path / "unfinished" / "run" / "metrics.json").read_text())
     meta["config"]["env_steps"] = 160                                # ... as a run of 160 steps would read
     (tmp_path / "unfinished" / "run" / "metrics.json").write_text(json.dumps(meta))
@@ -198,19 +198,19 @@ def test_ppo_run_writes_every_output_resumes_and_evaluates(tmp_path):
 
 
 def test_resumed_ppo_run_ends_where_an_uninterrupted_one_does(tmp_path, monkeypatch):
-    whole = train.train(smoke(), tmp_path / "whole", log=quiet)
+    whole = train.run(smoke(), tmp_path / "whole", log=quiet)
     calls = []
 
     def stop_after_first(run):                               # interrupt after the iteration-1 checkpoint
         calls.append(run.iteration)
         if run.iteration == 1:
             raise KeyboardInterrupt
-    real_save = train.save_checkpoint
+    real_save = run_folders.save_checkpoint
     monkeypatch.setattr(train, "save_checkpoint", lambda out, run: (real_save(out, run), stop_after_first(run)))
     with pytest.raises(KeyboardInterrupt):
-        train.train(smoke(), tmp_path / "split", log=quiet)
+        train.run(smoke(), tmp_path / "split", log=quiet)
     monkeypatch.setattr(train, "save_checkpoint", real_save)
-    resumed = train.train(smoke(), tmp_path / "split", resume=True, log=quiet)
+    resumed = train.run(smoke(), tmp_path / "split", resume=True, log=quiet)
     assert calls == [0, 1] and strip_times(resumed) == strip_times(whole)
 
 
@@ -218,7 +218,7 @@ def test_ppo_flags_round_trip_and_bad_input_exits_2(tmp_path, capsys):
     parser = train.build_parser()
     cfg = ppo.validate_config(smoke(train=("lnwwnl",), seed=2, gamma=0.95, anneal_lr=False,
                                     gnn=gnn.GNNConfig(hidden=16)))
-    args = parser.parse_args(train.config_args(cfg) + ["--preset", "default"])
+    args = parser.parse_args(run_folders.config_args(cfg) + ["--preset", "default"])
     assert train.config_from_args(args) == cfg
     for args in (["--method", "ppo", "--train", "car", "--demos", "lnnnnl"],
                  ["--method", "ppo", "--train", "car", "--env-steps", "0"],
@@ -233,11 +233,11 @@ def test_ppo_flags_round_trip_and_bad_input_exits_2(tmp_path, capsys):
         err = capsys.readouterr().err
         assert exit_.value.code == 2 and err.count("\n") == 1 and "Traceback" not in err, (args, err)
     assert not (tmp_path / "new").exists()
-    train.train(smoke(), tmp_path / "run", log=quiet)                  # a resume must keep the config
-    with pytest.raises(train.UsageError, match="only --env-steps may change"):
-        train.train(smoke(gamma=0.9), tmp_path / "run", resume=True, log=quiet)
-    with pytest.raises(train.UsageError, match="different configuration"):
-        train.train(rlil.preset("tiny", train=("car",)), tmp_path / "run", resume=True, log=quiet)
+    train.run(smoke(), tmp_path / "run", log=quiet)                  # a resume must keep the config
+    with pytest.raises(run_folders.UsageError, match="only --env-steps may change"):
+        train.run(smoke(gamma=0.9), tmp_path / "run", resume=True, log=quiet)
+    with pytest.raises(run_folders.UsageError, match="different configuration"):
+        train.run(rlil.preset("tiny", train=("car",)), tmp_path / "run", resume=True, log=quiet)
 
 
 # ----------------------------------------------------------------------------
@@ -311,13 +311,13 @@ def test_ppo_il_command_line_names_the_run_and_rejects_bad_demos(tmp_path, capsy
     assert train.main(argv + ["--out", str(tmp_path / "run")]) == 0
     assert "behavioural cloning on wnwwnw" in capsys.readouterr().out
     cfg = train.config_from_args(train.build_parser().parse_args(argv))
-    assert train.run_name(cfg) == "car-ppo_car-seed0"
-    assert train.method_of(cfg) == "PPO+IL"                            # curve.png's label
-    assert train.run_name(dataclasses.replace(cfg, demos=())) == "car-ppo-seed0"
+    assert run_folders.run_name(cfg) == "car-ppo_car-seed0"
+    assert run_folders.method_of(cfg) == "PPO+IL"                            # curve.png's label
+    assert run_folders.run_name(dataclasses.replace(cfg, demos=())) == "car-ppo-seed0"
     saved = json.loads((tmp_path / "run" / "metrics.json").read_text())
-    assert train.config_from_dict(saved["config"]) == cfg and saved["config"]["demos"] == ["wnwwnw"]
+    assert run_folders.config_from_dict(saved["config"]) == cfg and saved["config"]["demos"] == ["wnwwnw"]
     assert [row["il_weight"] for row in saved["iterations"][1:]] == [1.0, 0.7]
-    args = train.build_parser().parse_args(train.config_args(cfg) + ["--preset", "default"])
+    args = train.build_parser().parse_args(run_folders.config_args(cfg) + ["--preset", "default"])
     assert train.config_from_args(args) == cfg                          # what sweeps relaunch
     for bad in (["--demos", "lnnnnl"], ["--demos", "car", "car"], ["--demos", "car", "--il-window", "500"],
                 ["--demos", "car", "--il-decay", "1.5"]):
@@ -350,7 +350,7 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
         rows = [{"iteration": i, "sim_steps": 1000 * (i + 1), "seconds": 10.0,
                  "distance_m": 4.0 * i + r["seed"] + (6.0 if r["method"] == "PPO" else 0.0)}
                 for i in range(r["last"] + 1)]
-        (r["dir"] / "metrics.json").write_text(json.dumps({"config": train.config_to_dict(cfg), "iterations": rows}))
+        (r["dir"] / "metrics.json").write_text(json.dumps({"config": run_folders.config_to_dict(cfg), "iterations": rows}))
     monkeypatch.setattr(subprocess, "run", lambda *a, **k: pytest.fail("a finished run was launched"))
     assert sweeps.sample_efficiency(tmp_path, base, base_ppo, seeds=2, jobs=2, log=quiet) == []
     lines = (tmp_path / "sample_efficiency.csv").read_text().splitlines()

@@ -20,11 +20,10 @@ import numpy as np
 import pytest
 import torch
 
-import gnn
 import modular_rlil_minimal as rlil
 import sim2d
-import sweeps
 import train
+from experiments import run_folders, sweeps
 
 
 def tiny(**kw) -> rlil.Config:
@@ -68,7 +67,7 @@ def test_rl_phase_teaches_the_car_to_drive(tmp_path, cache):
     reach at least 7 m after one iteration (measured 9.8 m, wheel top speed 9.9 m).
     Fails with the RL loss's sign flipped (the policy then drives backwards, or the
     validation revert holds it at its start)."""
-    metrics = train.train(tiny(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
+    metrics = train.run(tiny(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
     assert metrics[0]["distance_m"] < 4.0
     assert metrics[1]["distance_m"] > 7.0, [m["distance_m"] for m in metrics]
     assert metrics[1]["il_weight"] == 0.0 and metrics[1]["il_loss"] is None
@@ -205,7 +204,7 @@ class Drifts(torch.nn.Module):
     def forward(self, s, a, graph):
         return s + torch.nn.functional.one_hot(torch.tensor(0), s.shape[-1]) * 0.1
 
-    def wire(self, graph):                                  # as gnn.ModularModel.wire: f(s, a) for roll-outs
+    def on_design(self, graph):                             # as gnn.ModularModel.on_design: f(s, a) for roll-outs
         return lambda s, a: self(s, a, graph)
 
 
@@ -324,8 +323,8 @@ def test_model_bias_compares_model_and_simulator_progress():
 # ----------------------------------------------------------------------------
 def test_tiny_run_writes_every_output_and_decays_lambda(tmp_path, cache):
     cfg = smoke(train=("leg_none_wheel",), demos=("hexapod", "car"), il_weight=0.4, il_decay=0.5)
-    metrics = train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
-    for name in train.OUTPUTS:
+    metrics = train.run(cfg, tmp_path, log=quiet, cache_dir=cache)
+    for name in run_folders.OUTPUTS:
         assert (tmp_path / name).stat().st_size > 0, name
     saved = json.loads((tmp_path / "metrics.json").read_text())
     config = saved["config"]
@@ -346,26 +345,26 @@ def test_tiny_run_writes_every_output_and_decays_lambda(tmp_path, cache):
 
 def test_existing_run_is_not_overwritten(tmp_path, cache):
     cfg = smoke(train=("car",), iters=1)
-    train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    train.run(cfg, tmp_path, log=quiet, cache_dir=cache)
     before = (tmp_path / "metrics.json").read_bytes()
-    with pytest.raises(train.UsageError, match="--resume"):
-        train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    with pytest.raises(run_folders.UsageError, match="--resume"):
+        train.run(cfg, tmp_path, log=quiet, cache_dir=cache)
     assert (tmp_path / "metrics.json").read_bytes() == before
 
 
 def test_resumed_run_ends_where_an_uninterrupted_one_does(tmp_path, cache):
     cfg = smoke(train=("leg_none_wheel",), demos=("car",), iters=2)
-    whole = train.train(cfg, tmp_path / "whole", log=quiet, cache_dir=cache)
-    train.train(dataclasses.replace(cfg, iters=1), tmp_path / "split", log=quiet, cache_dir=cache)
-    resumed = train.train(cfg, tmp_path / "split", resume=True, log=quiet, cache_dir=cache)
+    whole = train.run(cfg, tmp_path / "whole", log=quiet, cache_dir=cache)
+    train.run(dataclasses.replace(cfg, iters=1), tmp_path / "split", log=quiet, cache_dir=cache)
+    resumed = train.run(cfg, tmp_path / "split", resume=True, log=quiet, cache_dir=cache)
     assert strip_times(resumed) == strip_times(whole)
 
 
 def test_same_seed_same_metrics_other_seed_differs(tmp_path, cache):
     cfg = smoke(train=("car",), iters=1)
-    a = train.train(cfg, tmp_path / "a", log=quiet, cache_dir=cache)
-    b = train.train(cfg, tmp_path / "b", log=quiet, cache_dir=cache)
-    c = train.train(dataclasses.replace(cfg, seed=1), tmp_path / "c", log=quiet, cache_dir=cache)
+    a = train.run(cfg, tmp_path / "a", log=quiet, cache_dir=cache)
+    b = train.run(cfg, tmp_path / "b", log=quiet, cache_dir=cache)
+    c = train.run(dataclasses.replace(cfg, seed=1), tmp_path / "c", log=quiet, cache_dir=cache)
     assert strip_times(a) == strip_times(b)
     assert strip_times(a) != strip_times(c)
 
@@ -373,7 +372,7 @@ def test_same_seed_same_metrics_other_seed_differs(tmp_path, cache):
 def test_algorithm1_in_memory_matches_the_command_line_run(tmp_path, cache):
     cfg = smoke(train=("lnwwnl",), demos=("wnwwnw",), iters=1)
     run = rlil.algorithm1(cfg, rlil.load_demos(cfg, cache), log=quiet)
-    on_disk = train.train(cfg, tmp_path, log=quiet, cache_dir=cache)
+    on_disk = train.run(cfg, tmp_path, log=quiet, cache_dir=cache)
     assert strip_times(run.metrics) == strip_times(on_disk)
     assert run.iteration == 1 and run.il_weight == pytest.approx(cfg.il_weight * cfg.il_decay)
 
@@ -382,7 +381,7 @@ def test_non_finite_metrics_are_logged_and_stored_as_null(tmp_path, cache, monke
     """A NaN model loss must not pass silently: a warning line, and null in metrics.json."""
     monkeypatch.setattr(rlil, "train_model", lambda *a, **k: float("nan"))
     lines = []
-    train.train(smoke(train=("car",), iters=1), tmp_path, log=lines.append, cache_dir=cache)
+    train.run(smoke(train=("car",), iters=1), tmp_path, log=lines.append, cache_dir=cache)
     assert any("WARNING" in line and "model_loss" in line for line in lines)
     assert json.loads((tmp_path / "metrics.json").read_text())["iterations"][1]["model_loss"] is None
 
@@ -397,10 +396,10 @@ def run_cli(*args):
 def test_every_config_field_is_a_flag_with_help_and_round_trips():
     parser = train.build_parser()
     helps = {a.dest: a.help for a in parser._actions}
-    for _, dest, f in train.config_flags():
+    for _, dest, f in run_folders.config_flags():
         assert helps[dest] and not helps[dest].startswith(" ("), dest
     cfg = tiny(train=("llwwll",), demos=("hexapod", "car"), seed=3, il_weight=2.5)
-    args = parser.parse_args(train.config_args(cfg) + ["--preset", "default"])
+    args = parser.parse_args(run_folders.config_args(cfg) + ["--preset", "default"])
     assert train.config_from_args(args) == rlil.validate_config(cfg)
 
 
@@ -435,7 +434,7 @@ def test_cli_bad_input_exit_2_one_line_and_nothing_left_behind(tmp_path, capsys)
 def test_a_run_failing_before_its_first_checkpoint_leaves_no_directory(tmp_path, cache, monkeypatch):
     monkeypatch.setattr(rlil, "collect_random_rollouts", lambda *a: 1 / 0)
     with pytest.raises(ZeroDivisionError):
-        train.train(tiny(train=("car",)), tmp_path / "run", log=quiet, cache_dir=cache)
+        train.run(tiny(train=("car",)), tmp_path / "run", log=quiet, cache_dir=cache)
     assert not (tmp_path / "run").exists()
 
 
@@ -462,7 +461,7 @@ def test_ctrl_c_says_what_was_kept_and_the_printed_command_continues_the_run(tmp
 
 
 def test_cli_eval_zero_shot(tmp_path, cache):
-    train.train(smoke(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
+    train.run(smoke(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
                          capture_output=True, text=True, check=True)
     assert np.isfinite(float(out.stdout.strip().splitlines()[-1].split("distance_m=")[1]))
@@ -533,17 +532,17 @@ def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
 # (each a switch, off = the paper)
 # ----------------------------------------------------------------------------
 def test_a_run_written_before_a_removal_loads_only_if_it_left_the_removed_switch_off():
-    """Committed runs recorded settings that have since left the code (train.REMOVED_AT_OFF): at
+    """Committed runs recorded settings that have since left the code (run_folders.REMOVED_AT_OFF): at
     their off value the run used today's algorithm and loads; switched on, it is refused by name."""
-    d = json.loads(json.dumps(train.config_to_dict(rlil.Config())))
+    d = json.loads(json.dumps(run_folders.config_to_dict(rlil.Config())))
     old = {**d, "ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "critic": False,
            "critic_gamma": 0.99, "critic_lambda": 0.95, "critic_steps": 4,
            "gnn": {**d["gnn"], "contact_features": False}}
-    assert train.config_from_dict(old) == rlil.Config()
+    assert run_folders.config_from_dict(old) == rlil.Config()
     for changed, name in (({"gnn": {**d["gnn"], "contact_features": True}}, "gnn.contact_features"),
                           ({"ensemble": 3}, "ensemble"), ({"critic": True, "critic_gamma": 0.99}, "critic")):
-        with pytest.raises(train.UsageError, match=name):
-            train.config_from_dict({**d, **changed})
+        with pytest.raises(run_folders.UsageError, match=name):
+            run_folders.config_from_dict({**d, **changed})
 
 
 def test_clone_data_adds_the_clones_rollouts_before_the_first_model_fit(monkeypatch, hexapod_demos):
@@ -614,5 +613,5 @@ def test_algorithm1_with_keep_better_continues_from_the_kept_policy(tmp_path, mo
     assert not all(torch.equal(policies[3][k], policies[2][k]) for k in policies[2])
     assert len(run.data["wnwwnw"].actions) == cfg.random_episodes + 3 * 2 * cfg.policy_episodes
     assert run.kept_return == 2.0
-    train.save_checkpoint(tmp_path, run)
-    assert train.restore_run(train.load_checkpoint(tmp_path / "checkpoint.pt"), cfg).kept_return == 2.0
+    run_folders.save_checkpoint(tmp_path, run)
+    assert run_folders.restore_run(run_folders.load_checkpoint(tmp_path / "checkpoint.pt"), cfg).kept_return == 2.0

@@ -1,4 +1,4 @@
-"""Tests of sweeps.py: the launchers, the plan and collect path, the statistics over seeds, and
+"""Tests of experiments/: the sweeps' launchers, the plan and collect path, the statistics over seeds, and
 the results tables (no committed table is typed by hand).
 
 The committed results/*.md and every README.md / docs/*.md block between
@@ -8,7 +8,6 @@ change them (so the check can fail).  Figure 3's reuse of finished runs is
 tested in test_rlil.py, the sample-efficiency sweep in test_ppo.py.
 """
 import csv
-import dataclasses
 import shutil
 import subprocess
 
@@ -16,26 +15,24 @@ import numpy as np
 import pytest
 
 import modular_rlil_minimal as rlil
-
-import sweeps
-import train
+from experiments import run_folders, stats, sweeps, tables
 
 
 def test_committed_tables_and_readme_blocks_are_the_regenerated_ones():
-    """What `python sweeps.py --tables --check` checks, in-process: nothing differs."""
-    assert sweeps.tables(sweeps.ROOT, check=True) == []
-    readme = (sweeps.ROOT / "README.md").read_text()
-    assert sweeps.BEGIN.format("figure3_claims") in readme           # the check covers a README block
+    """What `python experiments/tables.py --check` checks, in-process: nothing differs."""
+    assert tables.tables(tables.ROOT, check=True) == []
+    readme = (tables.ROOT / "README.md").read_text()
+    assert tables.BEGIN.format("figure3_claims") in readme           # the check covers a README block
 
 
 def copy_of_repo(tmp_path):
     """results/*.csv and *.md, README.md and docs/ (if any) under tmp_path."""
     (tmp_path / "results").mkdir()
-    for p in [*sweeps.ROOT.glob("results/*.csv"), *sweeps.ROOT.glob("results/*.md")]:
+    for p in [*tables.ROOT.glob("results/*.csv"), *tables.ROOT.glob("results/*.md")]:
         shutil.copy(p, tmp_path / "results" / p.name)
-    shutil.copy(sweeps.ROOT / "README.md", tmp_path / "README.md")
-    if (sweeps.ROOT / "docs").exists():
-        shutil.copytree(sweeps.ROOT / "docs", tmp_path / "docs")
+    shutil.copy(tables.ROOT / "README.md", tmp_path / "README.md")
+    if (tables.ROOT / "docs").exists():
+        shutil.copytree(tables.ROOT / "docs", tmp_path / "docs")
     return tmp_path
 
 
@@ -50,23 +47,23 @@ def test_a_changed_csv_changes_the_tables_and_the_readme_block(tmp_path, monkeyp
     before = {p: p.read_text() for p in (root / "README.md", root / "results" / "figure3.md",
                                          root / "results" / "figure3_iterations.md")}
     before_claims = (root / "results" / "figure3_claims.md").read_text()
-    stale = sweeps.tables(root, check=True)
+    stale = tables.tables(root, check=True)
     assert set(stale) >= set(before)                                 # and the other tables made from it
     assert all(p.read_text() == text for p, text in before.items())     # --check writes nothing
-    monkeypatch.setattr(sweeps, "ROOT", root)
-    assert sweeps.main(["--tables", "--check"]) == 1
+    monkeypatch.setattr(tables, "ROOT", root)
+    assert tables.main(["--check"]) == 1
     assert "differs: README.md" in capsys.readouterr().out
 
-    assert sweeps.main(["--tables"]) == 0
+    assert tables.main([]) == 0
     table = (root / "results" / "figure3.md").read_text()
     assert table != before[root / "results" / "figure3.md"] and "99.00" in table      # its final max
     assert " - 99.00 |" in (root / "results" / "figure3_iterations.md").read_text()        # its max at iteration 5
     readme, claims = (root / "README.md").read_text(), (root / "results" / "figure3_claims.md").read_text()
-    begin, end = sweeps.BEGIN.format("figure3_claims"), sweeps.END.format("figure3_claims")
+    begin, end = tables.BEGIN.format("figure3_claims"), tables.END.format("figure3_claims")
     assert readme.split(begin + "\n")[1].split(end)[0] == claims     # the block is the new claims table
     assert claims != before_claims
-    assert sweeps.tables(root, check=True) == []
-    assert sweeps.main(["--tables", "--check"]) == 0
+    assert tables.tables(root, check=True) == []
+    assert tables.main(["--check"]) == 0
 
 
 def test_class_demo_csv_gets_its_per_iteration_table_and_a_missing_one_is_skipped(tmp_path):
@@ -74,12 +71,12 @@ def test_class_demo_csv_gets_its_per_iteration_table_and_a_missing_one_is_skippe
     (root / "results" / "class_demo.csv").unlink(missing_ok=True)
     (root / "results" / "class_demo.md").unlink(missing_ok=True)
     (root / "README.md").write_text("no blocks\n")
-    assert sweeps.tables(root) == []                                 # no class_demo.csv: nothing to make
+    assert tables.tables(root) == []                                 # no class_demo.csv: nothing to make
     assert not (root / "results" / "class_demo.md").exists()
     rows = [{"panel": "a", "train": "car", "demos": "", "method": "RL", "seed": s, "iteration": i,
              "distance_m": 1.0 + i + s} for s in (0, 1) for i in (0, 1)]
     sweeps.write_rows_csv(root / "results" / "class_demo.csv", sweeps.FIGURE3_COLUMNS, rows)
-    assert sweeps.tables(root) == [root / "results" / "class_demo.md"]
+    assert tables.tables(root) == [root / "results" / "class_demo.md"]
     assert (root / "results" / "class_demo.md").read_text().splitlines()[2:] == [
         "| (a) car | RL | 0 | 2 | 1.50 | [1.00, 2.00] | 1.00 - 2.00 |", "| (a) car | RL | 1 | 2 | 2.50 | [2.00, 3.00] | 2.00 - 3.00 |"]
 
@@ -87,13 +84,13 @@ def test_class_demo_csv_gets_its_per_iteration_table_and_a_missing_one_is_skippe
 def test_a_block_naming_a_missing_table_is_a_one_line_error_exit_2(tmp_path, monkeypatch, capsys):
     root = copy_of_repo(tmp_path)
     readme = root / "README.md"
-    readme.write_text(readme.read_text() + "\n" + sweeps.BEGIN.format("nothing") + "\nold\n"
-                      + sweeps.END.format("nothing") + "\n")
-    with pytest.raises(train.UsageError):
-        sweeps.tables(root, check=True)
-    monkeypatch.setattr(sweeps, "ROOT", root)
+    readme.write_text(readme.read_text() + "\n" + tables.BEGIN.format("nothing") + "\nold\n"
+                      + tables.END.format("nothing") + "\n")
+    with pytest.raises(run_folders.UsageError):
+        tables.tables(root, check=True)
+    monkeypatch.setattr(tables, "ROOT", root)
     with pytest.raises(SystemExit) as e:
-        sweeps.main(["--tables"])
+        tables.main([])
     err = capsys.readouterr().err
     assert e.value.code == 2 and len(err.strip().splitlines()) == 1 and "results/nothing.md" in err
     assert "old" in readme.read_text()                               # nothing was written
@@ -104,47 +101,47 @@ def test_a_block_naming_a_missing_table_is_a_one_line_error_exit_2(tmp_path, mon
 # ----------------------------------------------------------------------------
 def test_bootstrap_intervals_of_hand_computed_cases():
     # [0, 1]: resampled means 0, 0.5, 1 with probabilities 1/4, 1/2, 1/4: the central 95 % is (0, 1)
-    assert sweeps.bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
-    assert sweeps.bootstrap_ci([2.0, 2.0, 2.0]) == (2.0, 2.0)                       # no spread, no interval
+    assert stats.bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
+    assert stats.bootstrap_ci([2.0, 2.0, 2.0]) == (2.0, 2.0)                       # no spread, no interval
     # [0, 0, 0, 1] (n = 4): P(mean = 0) = (3/4)^4 = 0.316 > 2.5 %, P(mean = 1) = (1/4)^4 = 0.004 < 2.5 %,
     # P(mean >= 3/4) = 13/256 = 0.051 > 2.5 %: the interval is (0, 0.75)
-    assert sweeps.bootstrap_ci([0.0, 0.0, 0.0, 1.0]) == (0.0, 0.75)
+    assert stats.bootstrap_ci([0.0, 0.0, 0.0, 1.0]) == (0.0, 0.75)
     # five 0s and five 1s: the mean is Binomial(10, 1/2) / 10, whose cumulative probabilities pass
     # 2.5 % at 0.2 (0.055) and 97.5 % at 0.8 (0.989; at 0.7 only 0.945): the interval is (0.2, 0.8)
-    assert sweeps.bootstrap_ci([0.0] * 5 + [1.0] * 5) == (0.2, 0.8)
-    assert sweeps.bootstrap_diff_ci([3.0, 3.0], [1.0, 1.0]) == (2.0, 2.0)
-    lo, hi = sweeps.bootstrap_diff_ci([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
+    assert stats.bootstrap_ci([0.0] * 5 + [1.0] * 5) == (0.2, 0.8)
+    assert stats.bootstrap_diff_ci([3.0, 3.0], [1.0, 1.0]) == (2.0, 2.0)
+    lo, hi = stats.bootstrap_diff_ci([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
     assert lo < 0 < hi and lo == pytest.approx(-hi, abs=0.34)                    # symmetric about 0
-    assert sweeps.bootstrap_ci([0.0, 1.0], np.median) == (0.0, 1.0)
-    assert sweeps.bootstrap_ci([5.0, 1.0, 3.0], seed=1) == sweeps.bootstrap_ci([5.0, 1.0, 3.0], seed=1)
+    assert stats.bootstrap_ci([0.0, 1.0], np.median) == (0.0, 1.0)
+    assert stats.bootstrap_ci([5.0, 1.0, 3.0], seed=1) == stats.bootstrap_ci([5.0, 1.0, 3.0], seed=1)
 
 
 def test_probability_of_improvement_is_the_pair_count_and_mann_whitney_u():
     # x = [1, 2, 3], y = [2, 2]: pairs (1,2) (1,2) (2,2) (2,2) (3,2) (3,2) score 0, 0, 1/2, 1/2, 1, 1
-    assert sweeps.probability_of_improvement([1, 2, 3], [2, 2]) == 0.5
-    assert sweeps.probability_of_improvement([5, 6], [1, 2, 3]) == 1.0
-    assert sweeps.probability_of_improvement([1, 2, 3], [5, 6]) == 0.0
+    assert stats.probability_of_improvement([1, 2, 3], [2, 2]) == 0.5
+    assert stats.probability_of_improvement([5, 6], [1, 2, 3]) == 1.0
+    assert stats.probability_of_improvement([1, 2, 3], [5, 6]) == 0.0
     rng = np.random.default_rng(0)
     x, y = rng.integers(0, 5, 7).astype(float), rng.integers(0, 5, 9).astype(float)
     ranks = np.argsort(np.argsort(np.concatenate([x, y]))) + 1.0                  # U from mid-ranks, by hand
     both = np.concatenate([x, y])
     mid = np.array([ranks[both == v].mean() for v in both])
     u = mid[:len(x)].sum() - len(x) * (len(x) + 1) / 2
-    assert sweeps.probability_of_improvement(x, y) == pytest.approx(u / (len(x) * len(y)))
-    assert sweeps.probability_of_improvement_ci([5, 6], [1, 2, 3]) == (1.0, 1.0)
-    lo, hi = sweeps.probability_of_improvement_ci(x, y)
-    assert 0.0 <= lo <= sweeps.probability_of_improvement(x, y) <= hi <= 1.0
+    assert stats.probability_of_improvement(x, y) == pytest.approx(u / (len(x) * len(y)))
+    assert stats.probability_of_improvement_ci([5, 6], [1, 2, 3]) == (1.0, 1.0)
+    lo, hi = stats.probability_of_improvement_ci(x, y)
+    assert 0.0 <= lo <= stats.probability_of_improvement(x, y) <= hi <= 1.0
 
 
 def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
-    assert [sweeps.verdict(ci) for ci in ((0.1, 2.0), (-1.0, 1.0), (-2.0, -0.1))] == ["holds", "not settled", "fails"]
-    assert [sweeps.verdict(ci, 1.0) for ci in ((-0.5, 0.9), (-1.5, 0.5), (1.2, 3.0))] == ["holds", "not settled", "fails"]
+    assert [stats.verdict(ci) for ci in ((0.1, 2.0), (-1.0, 1.0), (-2.0, -0.1))] == ["holds", "not settled", "fails"]
+    assert [stats.verdict(ci, 1.0) for ci in ((-0.5, 0.9), (-1.5, 0.5), (1.2, 3.0))] == ["holds", "not settled", "fails"]
     rows = []                                      # panel (d): RL+IL walks at once, RL from iteration 3 on
     for method, curve in (("RL+IL", [5, 20, 20]), ("RL", [0, 0, 20])):
         for seed in range(4):
             rows += [{"panel": "d", "train": "leg_none_wheel", "demos": "hexapod+car", "method": method, "seed": seed,
                       "iteration": i, "distance_m": d + 0.1 * seed} for i, d in enumerate(curve)]
-    table = sweeps.summarize_claims(rows, iters=2, seeds=4)
+    table = tables.summarize_claims(rows, iters=2, seeds=4)
     assert "| (d) leg_none_wheel | RL+IL converges in fewer iterations | mean iterations to converge, " \
            "RL − RL+IL (2.0 − 1.0) | 1.00 | [1.00, 1.00] | holds |" in table
     faster = next(line for line in table.splitlines() if "RL+IL learns faster" in line)
@@ -156,7 +153,7 @@ def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper
     """Issue #23's tables: a fall is a loss between consecutive iterations from iteration 1 on (the
     clone's 0 -> 1 does not count), the exploitation column is the largest mean |model - simulator|,
     and "- paper" is the variant's area under the curve minus the paper's, same method."""
-    assert sweeps.largest_fall({0: 10, 1: 2, 2: 9, 3: 5}, 3) == 4 and sweeps.largest_fall({0: 1, 1: 2}, 1) == 0
+    assert tables.largest_fall({0: 10, 1: 2, 2: 9, 3: 5}, 3) == 4 and tables.largest_fall({0: 1, 1: 2}, 1) == 0
     rows = []
     for variant, rlil_curve, rl_curve in (("paper", [9, 20, 10, 20], [0, 5, 10, 15]),
                                           ("keep_better", [9, 20, 20, 20], [0, 5, 10, 16])):
@@ -165,7 +162,7 @@ def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper
                 rows += [{"variant": variant, "panel": "d", "method": method, "seed": seed, "iteration": i,
                           "distance_m": d, "model_progress_m": 1.0 + 0.5 * seed if i else None,
                           "sim_progress_m": 1.0 if i else None, "seconds": 1.0} for i, d in enumerate(curve)]
-    table = sweeps.summarize_variants(rows, {"paper": sweeps.SCREEN["paper"], "keep_better": sweeps.SCREEN["keep_better"]})
+    table = tables.summarize_variants(rows, {"paper": tables.SCREEN["paper"], "keep_better": tables.SCREEN["keep_better"]})
     line = {(c[1].strip(), c[4].strip()): c for c in (row.split("|") for row in table.splitlines()[2:])}
     assert line[("paper", "RL+IL")][8].strip() == "3 (10.00)" and line[("keep_better", "RL+IL")][8].strip() == "0 (0.00)"
     assert line[("paper", "RL+IL")][9].strip() == "0.50"                   # mean of |0|, |0.5|, |1.0|
@@ -173,12 +170,12 @@ def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper
     assert line[("keep_better", "RL+IL")][11].strip() == "3.33 [3.33, 3.33]"   # 20 - mean(20, 10, 20)
     assert line[("keep_better", "RL")][11].strip() == "0.33 [0.33, 0.33]"
     assert line[("paper", "RL+IL")][12].strip() == "6.67 [6.67, 6.67]"      # 16.67 - 10
-    against = sweeps.summarize_variants(rows, {"paper": ((), None), "keep_better": ((), None)}, baseline="keep_better")
+    against = tables.summarize_variants(rows, {"paper": ((), None), "keep_better": ((), None)}, baseline="keep_better")
     line = {(c[1].strip(), c[4].strip()): c for c in (row.split("|") for row in against.splitlines()[2:])}
     assert "− keep_better in area" in against and line[("keep_better", "RL+IL")][11].strip() == ""
     assert line[("paper", "RL+IL")][11].strip() == "-3.33 [-3.33, -3.33]"   # the other way round
     targets = {c[1].strip()[:2]: c[4].strip() + " | " + c[5].strip()
-               for c in (row.split("|") for row in sweeps.summarize_targets(rows, "paper").splitlines()[2:])}
+               for c in (row.split("|") for row in tables.summarize_targets(rows, "paper").splitlines()[2:])}
     assert targets["1."] == "RL+IL 3 (largest 10.00 m), RL 0 (largest 0.00 m) | missed"
     assert targets["4."] == "6.67 [6.67, 6.67] | met" and targets["5."] == "seeds 0, 1, 2 below | missed"
 

@@ -1,4 +1,4 @@
-"""Tests of the zero-shot transfer table and the side-by-side drawing (transfer.py, train.py --transfer/--compare).
+"""Tests of the zero-shot transfer table and the side-by-side drawing (experiments/transfer.py, train.py --transfer/--compare).
 
 Two tiny runs on the car, RL (seed 0) and RL+IL with hexapod demos (seed 1), made once for the module;
 their seeds differ so that their evaluation starts differ.
@@ -14,7 +14,7 @@ from PIL import Image
 import modular_rlil_minimal as rlil
 import sim2d
 import train
-import transfer
+from experiments import transfer
 
 
 def tiny(**kw) -> rlil.Config:
@@ -26,8 +26,8 @@ def tiny(**kw) -> rlil.Config:
 def runs(tmp_path_factory):
     root, cache = tmp_path_factory.mktemp("runs"), tmp_path_factory.mktemp("demo_cache")
     quiet = lambda *a: None                                          # noqa: E731
-    train.train(tiny(seed=0), root / "rl", log=quiet, cache_dir=cache)
-    train.train(tiny(seed=1, demos=("hexapod",)), root / "rlil", log=quiet, cache_dir=cache)
+    train.run(tiny(seed=0), root / "rl", log=quiet, cache_dir=cache)
+    train.run(tiny(seed=1, demos=("hexapod",)), root / "rlil", log=quiet, cache_dir=cache)
     return root / "rl", root / "rlil"
 
 
@@ -37,7 +37,7 @@ def test_transfer_table_own_design_equals_eval_seen_flags_and_ratio(runs, tmp_pa
     ratio = distance / demonstrator distance, the demonstrator from the run's own starts."""
     monkeypatch.setattr(transfer, "read_held_out", lambda: ["llllww"])
     out = tmp_path / "table"
-    assert train.main(["--transfer", *map(str, runs), "--design", "car", "hexapod", "--out", str(out)]) == 0
+    assert train.main(["--transfer", *map(str, runs), "--designs", "car", "hexapod", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "| seen | 1 |" in printed and "| unseen | 2 |" in printed
     assert all((out / f).stat().st_size > 0 for f in transfer.OUTPUTS)
@@ -127,8 +127,8 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(runs, tmp_path, caps
     (kept / "transfer.md").write_text("mine")
     (tmp_path / "mine.gif").write_text("mine")
     gif = str(tmp_path / "new.gif")
-    for args in (["--transfer", str(tmp_path / "nope")], ["--transfer", rl, "--design", "spider"],
-                 ["--transfer", rl, "--design", "lnnnnl"], ["--transfer", rl, "--out", str(kept)],
+    for args in (["--transfer", str(tmp_path / "nope")], ["--transfer", rl, "--designs", "spider"],
+                 ["--transfer", rl, "--designs", "lnnnnl"], ["--transfer", rl, "--design", "car"], ["--transfer", rl, "--out", str(kept)],
                  ["--transfer", rl, "--gif", gif], ["--transfer", rl, "--compare", rl, rlil_run],
                  ["--compare", rl, str(tmp_path / "nope"), "--gif", gif], ["--compare", rl, rlil_run],
                  ["--compare", rl, rlil_run, "--gif", gif, "--design", "spider"],

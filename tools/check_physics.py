@@ -1,4 +1,4 @@
-"""How far contacts and joints of sim2d's world give under aggressive legal actions (issue #11).
+"""How far contacts and joints of sim2d's world give under aggressive legal actions.
 
 Robots of each design run bang-bang actions (every joint at +-1, signs redrawn
 every 3 control steps) and random spline actions (sim2d.random_spline_actions)
@@ -14,9 +14,8 @@ PHYSICS_SUBSTEPS pymunk steps).  So this file drives the robots itself, through
 the same calls as sim2d.World.step (clip, scale to motor rates, set the rates,
 step the space), one pymunk step at a time.
 
-    python check_physics.py                     # the four named designs + 20 random codes, CPU, 15-25 s
-    python check_physics.py --design hexapod car --random-codes 0 --robots 4 --steps 100
-    python sim2d.py --check-physics [...]       # the same (forwards here)
+    python tools/check_physics.py               # the four named designs + 20 random codes, CPU, 15-25 s
+    python tools/check_physics.py --design hexapod car --random-codes 0 --robots 4 --steps 100
 
 Prints a table (one row per design and action kind, then the random codes'
 maxima) and one summary line of key=value pairs, the maxima over every row.
@@ -26,18 +25,22 @@ from __future__ import annotations
 import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pymunk
 import pymunk.batch
 import torch
 
-import sim2d
-from sim2d import (FLIP_PITCH, NAMED_DESIGNS, PHYSICS_SUBSTEPS, STEPS_PER_ACTION, CliParser, World, all_designs,
-                   design_graph, design_name, parse_design, random_spline_actions)
+if __package__ in (None, ""):              # run as a script: the stage files are one folder up
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import sim2d                                                                                 # noqa: E402
+from sim2d import (FLIP_PITCH, NAMED_DESIGNS, PHYSICS_SUBSTEPS, STEPS_PER_ACTION, CliParser, World,  # noqa: E402
+                   all_designs, design_graph, design_name, parse_design, random_spline_actions)
 
 # ----------------------------------------------------------------------------
-# Contacts and joints under any legal actions (issue #11), measured after
+# Contacts and joints under any legal actions, measured after
 # every physics step: a foot can tunnel and come back between control steps.
 # ----------------------------------------------------------------------------
 CHECK_SEED = 11        # seed of check_physics: its random codes, starts and actions
@@ -155,8 +158,8 @@ def check_physics(designs=tuple(NAMED_DESIGNS), random_codes: int = 20, n: int =
 
 
 def main(argv=None) -> int:
-    """`python check_physics.py [--design D ...]`: the table of check_physics and one summary line."""
-    parser = CliParser(prog="check_physics.py",
+    """`python tools/check_physics.py [--design D ...]`: the table of check_physics and one summary line."""
+    parser = CliParser(prog="tools/check_physics.py",
                        description="Measure ground penetration, joint gaps and limit overshoot under "
                                    "bang-bang and random spline actions, after every physics step.")
     parser.add_argument("--design", nargs="+", action="extend",

@@ -1,7 +1,7 @@
 """Zero-shot transfer: trained policies on designs they were not trained on, against each design's demonstrator.
 
 A modular policy controls any design, so a run trained on one design can be
-evaluated on all of them (issue 24).  For each (policy, design) this measures
+evaluated on all of them.  For each (policy, design) this measures
 the distance in the run's eval_steps control steps (200 by default, Sec. IV)
 from the starts `train.py --eval` uses, and the ratio to the distance the
 design's hand-crafted demonstrator (demos.Demonstrator) covers from the same
@@ -9,11 +9,11 @@ starts.  A design a run was trained on (its --train) is "seen" for that run;
 every other design, its demonstration designs included, is "unseen".
 
     python train.py --transfer runs/leg_none_wheel-hexapod_car-seed0 runs/leg_none_wheel-rl-seed0
-    python train.py --transfer runs/car-rl-seed0 --design car hexapod --out runs/transfer_car --force
+    python train.py --transfer runs/car-rl-seed0 --designs car hexapod --out runs/transfer_car --force
     python train.py --compare runs/A runs/B --gif ab.gif [--design hexapod] [--png ab.png]
-    python transfer.py > results/held_out_designs.txt     # remake the committed held-out list
+    python experiments/transfer.py > results/held_out_designs.txt     # remake the committed held-out list
 
---transfer evaluates each run on the named designs (default the four of
+--transfer evaluates each run on the --designs (default the four of
 Figure 3) and on the 50 held-out designs of results/held_out_designs.txt, and
 writes transfer.csv, transfer.png (a heat-map) and transfer.md (the summary,
 also printed) to --out (default runs/transfer).  --compare draws two runs'
@@ -30,14 +30,18 @@ from pathlib import Path
 import numpy as np
 import torch
 
-import demos
-import modular_rlil_minimal as rlil
-import sim2d
-import train
-from train import UsageError
+if __package__ in (None, ""):              # run as a script: the stage files are one folder up
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import demos                                                                                 # noqa: E402
+import modular_rlil_minimal as rlil                                                          # noqa: E402
+import sim2d                                                                                 # noqa: E402
+from experiments.run_folders import UsageError, check_new, load_policy, method_of            # noqa: E402
+from experiments.stats import bootstrap_ci                                                   # noqa: E402
+from sim2d import atomic_write                                                               # noqa: E402
 
 FIGURE3_DESIGNS = tuple(sim2d.NAMED_DESIGNS)          # hexapod, car, leg_leg_wheel, leg_none_wheel
-HELD_OUT_FILE = Path(__file__).resolve().parent / "results" / "held_out_designs.txt"
+HELD_OUT_FILE = Path(__file__).resolve().parents[1] / "results" / "held_out_designs.txt"
 HELD_OUT_COUNT, HELD_OUT_SEED = 50, 0
 GOOD_RATIO = 0.6                                        # "transfers": at least this fraction of the demonstrator
 OUTPUTS = ("transfer.csv", "transfer.png", "transfer.md")
@@ -67,7 +71,7 @@ def held_out_designs(n: int = HELD_OUT_COUNT, seed: int = HELD_OUT_SEED) -> list
 
 def held_out_text() -> str:
     """The text of results/held_out_designs.txt: one comment line, then one code per line."""
-    return (f"# {HELD_OUT_COUNT} held-out designs, made by `python transfer.py > results/held_out_designs.txt`: "
+    return (f"# {HELD_OUT_COUNT} held-out designs, made by `python experiments/transfer.py > results/held_out_designs.txt`: "
             f"numpy.random.default_rng({HELD_OUT_SEED}) draws them without replacement from the "
             f"{len(held_out_pool())} demonstrable codes (demos.check_demonstrable) that are none of the four "
             "Figure 3 designs; sorted\n"
@@ -76,7 +80,7 @@ def held_out_text() -> str:
 
 def read_held_out(path: Path = HELD_OUT_FILE) -> list[str]:
     if not path.is_file():
-        raise UsageError(f"no held-out design list at {path}: make it with python transfer.py > {path}")
+        raise UsageError(f"no held-out design list at {path}: make it with python experiments/transfer.py > {path}")
     return [line.strip() for line in path.read_text().splitlines() if line.strip() and not line.startswith("#")]
 
 
@@ -103,16 +107,16 @@ def design_codes(designs) -> list[str]:
 # ----------------------------------------------------------------------------
 @dataclass
 class Trained:
-    """A run's saved policy, loaded as --eval loads it (train.evaluate_run)."""
+    """A run's saved policy, loaded as --eval loads it (run_folders.load_policy)."""
 
     run_dir: Path
     cfg: object          # modular_rlil_minimal.Config or ppo_minimal.PPOConfig
-    policy: object       # the policy as it acts in its run (train.policy_to_evaluate)
+    policy: object       # the policy as it acts in its run (run_folders.policy_to_evaluate)
     iteration: int
 
     @property
     def method(self) -> str:
-        return train.method_of(self.cfg)
+        return method_of(self.cfg)
 
     @property
     def trained_on(self) -> list[str]:
@@ -127,7 +131,7 @@ def load_trained(run_dir) -> Trained:
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise UsageError(f"no run directory {run_dir}: give a run directory written by train.py")
-    return Trained(run_dir, *train.load_policy(run_dir))
+    return Trained(run_dir, *load_policy(run_dir))
 
 
 def policy_episodes(run: Trained, design: str, starts_of: Trained | None = None) -> sim2d.Episodes:
@@ -169,7 +173,6 @@ def transfer_rows(runs: list[Trained], designs: list[str]) -> list[dict]:
 def summary(rows: list[dict]) -> list[dict]:
     """Per run, seen and unseen designs apart: mean ratio with its 95 % bootstrap CI over designs, the
     median, and how many designs reach GOOD_RATIO of their demonstrator."""
-    import sweeps                                      # sweeps imports train: not at the top
     out = []
     for run in dict.fromkeys(r["run"] for r in rows):
         for seen in (True, False):
@@ -179,7 +182,7 @@ def summary(rows: list[dict]) -> list[dict]:
             ratio = np.array([r["ratio"] for r in group])
             out.append({**{k: group[0][k] for k in ("run", "method", "seed", "iteration", "trained")},
                         "designs": "seen" if seen else "unseen", "n": len(ratio), "mean": float(ratio.mean()),
-                        "ci": sweeps.bootstrap_ci(ratio), "median": float(np.median(ratio)),
+                        "ci": bootstrap_ci(ratio), "median": float(np.median(ratio)),
                         "good": int((ratio >= GOOD_RATIO).sum())})
     return out
 
@@ -202,7 +205,6 @@ def group_table(rows: list[dict]) -> str:
     distance on each Figure 3 design (* = trained on it; the first line: the demonstrator from the same
     starts), and on the held-out designs the mean over seeds of each run's mean ratio, with a 95 %
     bootstrap CI over seeds, and the share of designs at GOOD_RATIO of their demonstrator."""
-    import sweeps                                      # sweeps imports train: not at the top
     held_out = set(read_held_out())
     order = list(sim2d.NAMED_DESIGNS.values())          # Figure 3's designs in their order, then any other
     named = sorted({r["design"] for r in rows} - held_out, key=lambda c: (order.index(c) if c in order else 4, c))
@@ -223,7 +225,7 @@ def group_table(rows: list[dict]) -> str:
         per_run = np.array([[r["ratio"] for r in group if r["run"] == run and r["design"] in held_out]
                             for run in runs])                   # [run, held-out design]
         ratio, good = per_run.mean(axis=1), (per_run >= GOOD_RATIO).mean()
-        lo, hi = sweeps.bootstrap_ci(ratio)
+        lo, hi = bootstrap_ci(ratio)
         lines.append(f"| {method} | {trained} | {demo or '-'} | {len(runs)} | " + " | ".join(cells)
                      + f" | {ratio.mean():.2f} [{lo:.2f}, {hi:.2f}] | {100 * good:.0f} % |")
     return "\n".join(lines) + "\n"
@@ -235,13 +237,12 @@ def generalist_table(generalist: list[dict], figure3: list[dict], steps: dict) -
     distance over seeds with a 95 % bootstrap CI.  `steps`: {"generalist": simulator steps of one
     generalist at its last iteration, k: the single-design runs' steps at iteration k, summed over
     the designs}; the single-design columns are the iterations named in it."""
-    import sweeps                                      # sweeps imports train: not at the top
     seeds = sorted({r["seed"] for r in generalist})
     last = max(r["iteration"] for r in generalist)
     iters = sorted(k for k in steps if k != "generalist")
 
     def fmt(x):
-        lo, hi = sweeps.bootstrap_ci(np.array(x))
+        lo, hi = bootstrap_ci(np.array(x))
         return f"{np.mean(x):.2f} [{lo:.2f}, {hi:.2f}]"
 
     designs = list(dict.fromkeys(r["design"] for r in generalist if r["seen"]))
@@ -310,7 +311,7 @@ def transfer(run_dirs, named=FIGURE3_DESIGNS, out="runs/transfer", force: bool =
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file, not a directory: name a new or existing folder")
-    train.check_new([out / f for f in OUTPUTS], force)
+    check_new([out / f for f in OUTPUTS], force)
     runs = [load_trained(d) for d in run_dirs]
     designs = list(dict.fromkeys(design_codes(named) + read_held_out()))
     try:
@@ -318,10 +319,10 @@ def transfer(run_dirs, named=FIGURE3_DESIGNS, out="runs/transfer", force: bool =
     except OSError as e:
         raise UsageError(f"cannot make the folder {out} ({e.strerror or type(e).__name__}): name another --out")
     rows = transfer_rows(runs, designs)
-    train.atomic_write(out / "transfer.csv", lambda p: write_csv(rows, p))
-    train.atomic_write(out / "transfer.png", lambda p: save_heatmap(rows, p))
+    atomic_write(out / "transfer.csv", lambda p: write_csv(rows, p))
+    atomic_write(out / "transfer.png", lambda p: save_heatmap(rows, p))
     text = summary_markdown(rows)
-    train.atomic_write(out / "transfer.md", lambda p: Path(p).write_text(text))
+    atomic_write(out / "transfer.md", lambda p: Path(p).write_text(text))
     print(text + f"wrote {', '.join(str(out / f) for f in OUTPUTS)}")
     return rows
 
@@ -344,7 +345,7 @@ def save_compare_gif(graph, trajectories, labels, path, every: int = 2) -> int:
     fig, axes = plt.subplots(len(trajectories), 1, figsize=(8, 0.4 + 2.8 * len(trajectories)), dpi=80)
     angles = [sim2d._wheel_angles(graph, s) for s in trajectories]
     for ax, s in zip(axes, trajectories):
-        sim2d._style_axes(ax, s[0, 0] / sim2d.CM)
+        sim2d._style_axes(ax, s[0, 0] / sim2d.M_PER_CM)
         ax.set_title(" ", fontsize=12)
     fig.suptitle(" ", fontsize=13)
     fig.tight_layout()                                      # room for the titles drawn below
@@ -355,7 +356,7 @@ def save_compare_gif(graph, trajectories, labels, path, every: int = 2) -> int:
                 artist.remove()
             drawn = []
             for ax, s, angle, label in zip(axes, trajectories, angles, labels):
-                sim2d._style_axes(ax, s[t, 0] / sim2d.CM, static=False)
+                sim2d._style_axes(ax, s[t, 0] / sim2d.M_PER_CM, static=False)
                 drawn += sim2d._draw_robot(ax, graph, s[t], angle[t])
                 ax.set_title(f"{label}: {s[t, 0] - s[0, 0]:5.2f} m", fontsize=12)
             fig.suptitle(f"{graph.name} ({graph.code})   t = {t * sim2d.CONTROL_DT:4.1f} s", fontsize=13)
@@ -375,7 +376,7 @@ def save_compare_png(graph, trajectories, labels, path, poses: int = 6) -> None:
     for row, s, label in zip(axes, trajectories, labels):
         angles, times = sim2d._wheel_angles(graph, s), np.linspace(0, len(s) - 1, poses).astype(int)
         for ax, t in zip(row, times):
-            sim2d._style_axes(ax, s[t, 0] / sim2d.CM, width=160.0)
+            sim2d._style_axes(ax, s[t, 0] / sim2d.M_PER_CM, width=160.0)
             sim2d._draw_robot(ax, graph, s[t], angles[t])
             ax.set_title(f"t = {t * sim2d.CONTROL_DT:.1f} s, {s[t, 0] - s[0, 0]:.2f} m", fontsize=11)
         row[0].set_ylabel(label, fontsize=10)
@@ -398,15 +399,15 @@ def compare(run_a, run_b, gif, design: str | None = None, png: str | None = None
     for f in (gif, png):
         if f and not Path(f).resolve().parent.is_dir():
             raise UsageError(f"cannot write {f}: no folder {Path(f).parent}")
-    train.check_new([gif, png], force)
+    check_new([gif, png], force)
     trajectories = compare_trajectories(a, b, graph.code)
     labels = [run.label for run in (a, b)]
     for run, s in zip((a, b), trajectories):
         print(f"{run.run_dir} ({run.label}) on {graph.name}: {s[-1, 0] - s[0, 0]:.2f} m in {len(s) - 1} steps")
-    train.atomic_write(Path(gif), lambda p: save_compare_gif(graph, trajectories, labels, p))
+    atomic_write(Path(gif), lambda p: save_compare_gif(graph, trajectories, labels, p))
     print(f"wrote {gif}")
     if png:
-        train.atomic_write(Path(png), lambda p: save_compare_png(graph, trajectories, labels, p))
+        atomic_write(Path(png), lambda p: save_compare_png(graph, trajectories, labels, p))
         print(f"wrote {png}")
     return trajectories
 
@@ -418,15 +419,15 @@ def main(args) -> int:
     if args.transfer and args.compare:
         raise UsageError("--transfer and --compare exclude each other")
     if args.transfer:
-        if args.gif or args.png:
-            raise UsageError("--gif and --png go with --eval or --compare, not --transfer")
-        transfer(args.transfer, args.design or FIGURE3_DESIGNS, args.out or "runs/transfer", args.force)
+        if args.gif or args.png or args.design:
+            raise UsageError("--gif, --png and --design go with --eval or --compare; --transfer takes --designs")
+        transfer(args.transfer, args.designs or FIGURE3_DESIGNS, args.out or "runs/transfer", args.force)
         return 0
     if not args.gif:
         raise UsageError("--compare needs --gif FILE (and optionally --png FILE)")
-    if args.out or (args.design and len(args.design) > 1):
-        raise UsageError("--compare takes one --design and writes --gif and --png, not --out")
-    compare(*args.compare, args.gif, args.design[0] if args.design else None, args.png, args.force)
+    if args.out or args.designs:
+        raise UsageError("--compare takes one --design and writes --gif and --png, not --out or --designs")
+    compare(*args.compare, args.gif, args.design, args.png, args.force)
     return 0
 
 

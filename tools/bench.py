@@ -12,35 +12,38 @@ Three groups of measurements (none of them is ever asserted by a test):
 
 CPU commands (one torch thread unless --threads):
 
-    python bench.py                      # all three groups, ~1 min
-    python bench.py --world              # the world only, ~10 s
-    python bench.py --networks           # the networks only, ~30 s
-    python bench.py --ppo --design car   # one PPO iteration on the car (default hexapod)
-    python bench.py --profile policy     # torch.profiler: operators of 3 default policy steps, by self CPU time
-    python bench.py --profile bc         # ... of behavioural-cloning steps (also: model)
-    python bench.py --networks --threads 2
+    python tools/bench.py                      # all three groups, ~1 min
+    python tools/bench.py --world              # the world only, ~10 s
+    python tools/bench.py --networks           # the networks only, ~30 s
+    python tools/bench.py --ppo --design car   # one PPO iteration on the car (default hexapod)
+    python tools/bench.py --profile policy     # torch.profiler: operators of 3 default policy steps, by self CPU time
+    python tools/bench.py --profile bc         # ... of behavioural-cloning steps (also: model)
+    python tools/bench.py --networks --threads 2
 
 The first line printed says what ran the numbers: torch's version, its CPU
 capability (the vector instructions its kernels use) and the thread count.
-Each group ends with one line of key=value figures, for scripts.  The old
-commands `python sim2d.py --bench`, `python gnn.py --bench`, `python gnn.py
---profile X` and `python ppo_minimal.py --bench` forward here.
+Each group ends with one line of key=value figures, for scripts.
 """
 from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
-import demos as demo_lib
-import modular_rlil_minimal as rlil
-import sim2d
-from gnn import GNNConfig, ModularModel, ModularPolicy
-from ppo_minimal import Memoryless, PPOConfig, collect_episodes, gae, new_run, ppo_update, validate_config
-from sim2d import (NAMED_DESIGNS, PHYSICS_SUBSTEPS, STEPS_PER_ACTION, SUBSTEP_DT, World, design_graph,
-                   joint_speed_scale, random_spline_actions)
+if __package__ in (None, ""):              # run as a script: the stage files are one folder up
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import demos as demo_lib                                                                    # noqa: E402
+import modular_rlil_minimal as rlil                                                          # noqa: E402
+import sim2d                                                                                 # noqa: E402
+from gnn import GNNConfig, ModularModel, ModularPolicy                                       # noqa: E402
+from ppo_minimal import (Memoryless, PPOConfig, collect_episodes, gae, new_run, ppo_update,  # noqa: E402
+                         validate_config)
+from sim2d import (NAMED_DESIGNS, PHYSICS_SUBSTEPS, STEPS_PER_ACTION, SUBSTEP_DT, World,     # noqa: E402
+                   design_graph, joint_speed_scale, random_spline_actions)
 
 PROFILE_STEPS = ("policy", "bc", "model")
 
@@ -305,7 +308,7 @@ def print_ppo(design: str, threads: int) -> None:
 # Entry point
 # ----------------------------------------------------------------------------
 def main(argv=None) -> int:
-    parser = sim2d.CliParser(prog="bench.py", description=__doc__.split("\n")[0])
+    parser = sim2d.CliParser(prog="tools/bench.py", description=__doc__.split("\n")[0])
     parser.add_argument("--world", action="store_true", help="time the world against bare pymunk")
     parser.add_argument("--networks", action="store_true", help="time hexapod roll-outs and model fitting, "
                         "and the default run's policy, BC and model steps")

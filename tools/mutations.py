@@ -7,8 +7,8 @@ directory, the one line is changed there (never here), and only that test is
 run.  The table it prints (and writes to results/mutations.md, which
 docs/cli.md shows) says whether every test went red.
 
-    python tests/mutations.py            # all of them, about 5 minutes on 2 cores
-    python tests/mutations.py --only 3   # one entry, by number
+    python tools/mutations.py            # all of them, about 5 minutes on 2 cores
+    python tools/mutations.py --only 3   # one entry, by number
 """
 from __future__ import annotations
 
@@ -80,16 +80,16 @@ MUTATIONS = [
      "            torch.nn.utils.clip_grad_norm_(params, cfg.max_grad_norm)\n            opt.step()",
      "            torch.nn.utils.clip_grad_norm_(params, cfg.max_grad_norm)",
      "tests/test_ppo.py::test_ppo_teaches_the_car_to_drive"),
-    ("check_physics: one figure printed under another's key", "check_physics.py",
+    ("check_physics: one figure printed under another's key", "tools/check_physics.py",
      "max_penetration_cm={result['max_penetration_cm']:.2f}", "max_penetration_cm={result['max_joint_gap_cm']:.2f}",
      "tests/test_sim2d.py::test_check_physics_command_line_ends_with_one_summary_line"),
-    ("statistics: an 80 % interval instead of 95 %", "sweeps.py",
+    ("statistics: an 80 % interval instead of 95 %", "experiments/stats.py",
      "LEVEL = 0.95", "LEVEL = 0.80",
      "tests/test_sweeps.py::test_bootstrap_intervals_of_hand_computed_cases"),
-    ("statistics: ties count as wins in P(X > Y)", "sweeps.py",
+    ("statistics: ties count as wins in P(X > Y)", "experiments/stats.py",
      "p = ((x > y) + 0.5 * (x == y))", "p = ((x >= y) + 0.0 * (x == y))",
      "tests/test_sweeps.py::test_probability_of_improvement_is_the_pair_count_and_mann_whitney_u"),
-    ("sweeps: parallel runs keep several threads", "sweeps.py",
+    ("sweeps: parallel runs keep several threads", "experiments/sweeps.py",
      "threads=1 if jobs > 1 else base.threads)", "threads=base.threads)",
      "tests/test_rlil.py::test_figure3_reuses_finished_runs_and_writes_plot_and_csv"),
     ("PPO+IL: the imitation term dropped", "ppo_minimal.py",
@@ -102,9 +102,9 @@ MUTATIONS = [
 
 
 def copy_repo(dest: Path) -> None:
-    """The working tree's Python files, tests, results and docs (no runs, caches or .git)."""
+    """The working tree's Python files, tools, experiments, tests, results and docs (no runs, caches or .git)."""
     for item in ROOT.iterdir():
-        if item.suffix == ".py" or item.name in ("tests", "results", "docs", "README.md"):
+        if item.suffix == ".py" or item.name in ("tools", "experiments", "tests", "results", "docs", "README.md"):
             (shutil.copytree if item.is_dir() else shutil.copy)(item, dest / item.name)
 
 
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     picked = args.only or range(1, len(MUTATIONS) + 1)
     if any(not 1 <= i <= len(MUTATIONS) for i in picked):
-        parser.exit(2, f"mutations.py: error: --only takes numbers 1-{len(MUTATIONS)}\n")
+        parser.exit(2, f"tools/mutations.py: error: --only takes numbers 1-{len(MUTATIONS)}\n")
     rows = []
     for i in picked:
         row = run_one(*MUTATIONS[i - 1])

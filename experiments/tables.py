@@ -1,0 +1,443 @@
+"""The results tables: every results/*.md from the committed CSVs, and the README/docs blocks that show them.
+
+No table is typed by hand.  `python experiments/tables.py` regenerates them
+from the committed CSVs in results/ (figure3.md, figure3_claims.md,
+figure3_iterations.md, main_command.md (Figure 3's panel d),
+sample_efficiency.md, the stability screens, the transfer tables and the
+per-iteration table of every CSV in ITERATION_TABLES), and rewrites every
+block of README.md and docs/**/*.md between `<!-- begin: results/NAME.md -->`
+and `<!-- end: results/NAME.md -->` lines with results/NAME.md.
+
+    python experiments/tables.py              # results/*.md and the README/docs blocks from results/*.csv
+    python experiments/tables.py --check      # writes nothing; exit 1 naming every file that differs
+    python experiments/tables.py --screen     # first rebuild the stability screens' CSVs from their runs
+"""
+from __future__ import annotations
+
+import csv
+import json
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):              # run as a script: the stage files are one folder up
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import modular_rlil_minimal as rlil                                               # noqa: E402
+import sim2d                                                                      # noqa: E402
+from experiments import transfer                                                  # noqa: E402
+from experiments.run_folders import UsageError                                    # noqa: E402
+from experiments.stats import (area_under_curve, bootstrap_ci, bootstrap_diff_ci, interval,  # noqa: E402
+                               probability_of_improvement, probability_of_improvement_ci, verdict)
+from experiments.sweeps import (FIGURE3_COLUMNS, PANELS, figure3_rows, figure3_runs, panel_curves,  # noqa: E402
+                                per_run, summarize_figure3, summarize_sample_efficiency, write_rows_csv)
+from sim2d import atomic_write                                                    # noqa: E402
+
+
+# ----------------------------------------------------------------------------
+# The paper's claims for Figure 3, each tested by a statistic over seeds
+# ----------------------------------------------------------------------------
+# The paper's claims for Figure 3 (its caption and Sec. IV), fixed before the 10-seed sweep ran:
+# (b)'s "little effect" is read as a difference within LITTLE_EFFECT of 0.
+LITTLE_EFFECT = {"iterations": 1.0, "m": 1.0}
+
+
+def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
+    """Markdown: each of the paper's Figure 3 claims per panel, the statistic that tests it, its
+    95 % bootstrap CI, and holds / not settled / fails (`verdict`).
+
+    Iterations to converge: summarize_figure3's rule per seed, a seed that never converges
+    counted at iters + 1.  (a), (c), (d): RL+IL converges in fewer iterations (mean RL - RL+IL
+    above 0) and learns faster (area under the curve, RL+IL - RL, above 0, with P(RL+IL > RL));
+    (b): the car's demos have little effect (both differences within LITTLE_EFFECT); all four:
+    RL+IL lowers the variance of convergence (std RL - RL+IL above 0).
+    """
+    lines = [f"| panel | claim | statistic ({seeds} seeds per method; a seed that never converges counts "
+             f"{iters + 1}) | value | 95 % CI | verdict |",
+             "|---|---|---|---|---|---|"]
+    std = lambda x, axis=-1: np.std(x, axis=axis)                      # noqa: E731
+    for panel, (design, demos) in PANELS.items():
+        stats = per_run(panel_curves(rows, panel, iters), iters)
+        if set(stats) != {"RL", "RL+IL"} or not all(stats[m]["auc"] for m in stats):
+            continue
+        rl, rlil = stats["RL"], stats["RL+IL"]
+        name = f"({panel}) {design}"
+        little = panel == "b"
+        conv = bootstrap_diff_ci(rl["converge"], rlil["converge"])
+        auc = bootstrap_diff_ci(rlil["auc"], rl["auc"])
+        lines.append(f"| {name} | {'demos have little effect on convergence' if little else 'RL+IL converges in fewer iterations'} "
+                     f"| mean iterations to converge, RL − RL+IL ({np.mean(rl['converge']):.1f} − "
+                     f"{np.mean(rlil['converge']):.1f}) | {np.mean(rl['converge']) - np.mean(rlil['converge']):.2f} "
+                     f"| {interval(conv)} | {verdict(conv, LITTLE_EFFECT['iterations'] if little else None)} |")
+        lines.append(f"| {name} | {'demos have little effect on distance' if little else 'RL+IL learns faster'} "
+                     f"| area under the curve (mean m over iterations 1-{iters}), RL+IL − RL; "
+                     f"P(RL+IL > RL) = {probability_of_improvement(rlil['auc'], rl['auc']):.2f} "
+                     f"{interval(probability_of_improvement_ci(rlil['auc'], rl['auc']))} "
+                     f"| {np.mean(rlil['auc']) - np.mean(rl['auc']):.2f} | {interval(auc)} "
+                     f"| {verdict(auc, LITTLE_EFFECT['m'] if little else None)} |")
+        spread = bootstrap_diff_ci(rl["converge"], rlil["converge"], statistic=std)
+        lines.append(f"| {name} | RL+IL lowers the variance of convergence | std of iterations to converge, "
+                     f"RL − RL+IL ({np.std(rl['converge']):.2f} − {np.std(rlil['converge']):.2f}) "
+                     f"| {np.std(rl['converge']) - np.std(rlil['converge']):.2f} | {interval(spread)} "
+                     f"| {verdict(spread)} |")
+    return "\n".join(lines) + "\n"
+
+
+
+# ----------------------------------------------------------------------------
+# The stability screens: switches against collapse between iterations, panels (a)
+# and (d), both methods, 5 seeds, each against the default on the same seeds
+# ----------------------------------------------------------------------------
+SCREEN = {   # variant: (its train.py flags, the variant whose RL runs are its own: None = its own runs)
+    "paper": (("--clone-data", "off", "--keep-better", "off"), None),
+    "clone_data": (("--clone-data", "on", "--keep-better", "off"), "paper"),   # acts only with demos
+    "keep_better": (("--clone-data", "off", "--keep-better", "on"), None),
+    "clone_data+keep_better": (("--clone-data", "on", "--keep-better", "on"), "keep_better"),
+}
+CONFIRM = {  # the 10-seed Figure 3 with the chosen defaults against the paper's Algorithm 1, same seeds
+    "paper": SCREEN["paper"],
+    "default (clone_data+keep_better)": ((), None),
+}
+DEFAULT = "default (clone_data+keep_better)"        # the chosen defaults: results/figure3_runs/
+SCREEN_OVER_DEFAULTS = {  # the later candidates, each over the chosen defaults and against them, same seeds
+    DEFAULT: ((), None),
+    "contact_features": (("--gnn-contact-features", "on"), None),   # both flags removed after 0571107;
+    "critic": (("--critic", "on"), None),                            # their runs stay committed
+}
+SCREEN_SEEDS, SCREEN_PANELS, FALL_M = 5, "ad", 3.0     # a fall: distance lost between consecutive iterations
+
+
+def variant_dir(root: Path, variant: str) -> Path:
+    """Where a variant's committed metrics.json live: the defaults' are the README's 10-seed Figure 3
+    (results/figure3_runs/), the others' (the paper's Algorithm 1 included) in
+    results/stability_runs/<variant>/."""
+    return root / "results" / ("figure3_runs" if variant.startswith("default") else f"stability_runs/{variant}")
+
+
+def variant_rows(root: Path, variants: dict, seeds: int, panels: str) -> list[dict]:
+    """FIGURE3_COLUMNS rows, with the variant, of every finished run of `variants` (SCREEN, CONFIRM)."""
+    rows = []
+    for variant, (_, rl_from) in variants.items():
+        runs = figure3_runs(variant_dir(root, variant), rlil.Config(), seeds, 2, panels)
+        rows += [{"variant": variant, **row} for row in figure3_rows(
+            [r for r in runs if not (rl_from and r["method"] == "RL")])]
+    return rows
+
+
+def largest_fall(curve: dict, iters: int) -> float:
+    """A run's largest loss of distance between consecutive iterations from iteration 1 on (0 if none)."""
+    return max([0.0] + [curve[i] - curve[i + 1] for i in range(1, iters) if i in curve and i + 1 in curve])
+
+
+def variant_stats(rows: list[dict], variant: str, rl_from: str | None, panel: str, iters: int) -> dict:
+    """method -> per_run's lists (area, final) plus curves, mean curve, falls, exploitation and time,
+    for one variant and panel (its RL runs those of `rl_from` when given)."""
+    sub = [r for r in rows if r["panel"] == panel and (
+        (r["variant"] == variant and r["method"] == "RL+IL") or (r["variant"] == (rl_from or variant)
+                                                               and r["method"] == "RL"))]
+    runs, gaps, mean, _ = panel_curves(sub, panel, iters)
+    stats = per_run((runs, gaps, mean, float("inf")), iters)
+    for method, s in stats.items():
+        s.update(curves=runs[method], mean=mean[method],
+                 falls=[largest_fall(c, iters) for c in runs[method].values()],
+                 exploit=max([np.mean(g) for i, g in gaps.get(method, {}).items() if i >= 1], default=float("nan")),
+                 seconds=np.mean([sum(r["seconds"] or 0 for r in sub if r["method"] == method and r["seed"] == seed)
+                                  for seed in runs[method]]))
+    return stats
+
+
+def difference(x, y) -> str:
+    """mean(x) - mean(y) [its 95 % bootstrap CI], or empty when either is empty."""
+    return f"{np.mean(x) - np.mean(y):.2f} {interval(bootstrap_diff_ci(x, y))}" if len(x) and len(y) else ""
+
+
+def summarize_variants(rows: list[dict], variants: dict = SCREEN, baseline: str = "paper") -> str:
+    """Markdown, one line per variant, panel and method: mean distance per iteration, the final
+    mean with its 95 % CI, the seeds that fall by more than FALL_M m between consecutive
+    iterations from iteration 1 on (and the largest fall), exploitation (the largest mean over
+    seeds of |model - simulator progress| over the first T steps, iterations >= 1), the area
+    under the curve, the variant − `baseline` in it (same method, the variant's seeds) and, on the RL+IL
+    line, RL+IL − RL in it, each with its 95 % CI, and the mean time per run."""
+    iters = max(r["iteration"] for r in rows)
+    lines = ["| variant | flags | panel | method | seeds | mean distance, iterations 0 → "
+             f"{iters} (m) | final [95 % CI] (m) | seeds falling > {FALL_M:.0f} m (largest fall, m) "
+             f"| exploitation (m) | area under the curve (m) | − {baseline.split(' (')[0]} in area [95 % CI] (m) "
+             "| RL+IL − RL in area [95 % CI] (m) | time per run (s) |",
+             "|---" * 13 + "|"]
+    panels = [p for p in PANELS if any(r["panel"] == p for r in rows)]
+    for variant, (flags, rl_from) in variants.items():
+        code = f"`{' '.join(flags)}`" if flags else ""
+        for panel in panels:
+            stats = variant_stats(rows, variant, rl_from, panel, iters)
+            paper = variant_stats(rows, baseline, None, panel, iters) if variant != baseline else {}
+            for method in ("RL+IL", "RL"):
+                if method not in stats:
+                    continue
+                s = stats[method]
+                label = f"{variant} (the {rl_from} runs)" if method == "RL" and rl_from else variant
+                if not s["auc"]:
+                    lines.append(f"| {label} | {code} | ({panel}) {PANELS[panel][0]} | {method} | "
+                                 f"{len(s['curves'])} | unfinished |" + " |" * 7)
+                    continue
+                curve = ", ".join(f"{s['mean'][i]:.1f}" for i in sorted(s["mean"]))
+                same_runs = method == "RL" and rl_from == baseline                # nothing to compare
+                paper_auc = [area_under_curve(c, iters) for seed, c in paper.get(method, {}).get("curves", {}).items()
+                             if seed in s["curves"]]                                    # the same seeds only
+                against = difference(s["auc"], paper_auc) if paper_auc and not same_runs else ""
+                gap = difference(s["auc"], stats["RL"]["auc"]) if method == "RL+IL" and "RL" in stats else ""
+                lines.append(
+                    f"| {label} | {code} | ({panel}) {PANELS[panel][0]} | {method} | {len(s['auc'])} "
+                    f"| {curve} "
+                    f"| {np.mean(s['final']):.2f} {interval(bootstrap_ci(s['final']))} "
+                    f"| {sum(f > FALL_M for f in s['falls'])} ({max(s['falls']):.2f}) | {s['exploit']:.2f} "
+                    f"| {np.mean(s['auc']):.2f} | {against} | {gap} | {s['seconds']:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
+def summarize_targets(rows: list[dict], variant: str) -> str:
+    """Markdown: the stability targets 1-5 (docs/history/), each measured on `variant`'s runs (seeds counted per line)."""
+    iters = max(r["iteration"] for r in rows)
+    stats = {p: variant_stats(rows, variant, None, p, iters) for p in PANELS if any(r["panel"] == p for r in rows)}
+    met = lambda ok: "met" if ok else "missed"                              # noqa: E731
+    lines = ["| target | panel | seeds (RL+IL, RL) | measured | met? |", "|---|---|---|---|---|"]
+    for p, s in stats.items():
+        if not (s.get("RL+IL", {}).get("auc") and s.get("RL", {}).get("auc")):
+            continue
+        rlil, rl = s["RL+IL"], s["RL"]
+        seeds = f"{len(rlil['auc'])}, {len(rl['auc'])}"
+        name = f"({p}) {PANELS[p][0]}"
+        n_rlil, n_rl = sum(f > FALL_M for f in rlil["falls"]), sum(f > FALL_M for f in rl["falls"])
+        lines.append(f"| 1. no RL+IL seed falls > {FALL_M:.0f} m from iteration 1 on; RL at most 1 in 10 | {name} "
+                     f"| {seeds} | RL+IL {n_rlil} (largest {max(rlil['falls']):.2f} m), RL {n_rl} "
+                     f"(largest {max(rl['falls']):.2f} m) | {met(n_rlil == 0 and n_rl <= len(rl['falls']) / 10)} |")
+        if p == "a":
+            final, start = np.mean(rlil["final"]), rlil["mean"][0]
+            lines.append(f"| 2. hexapod RL+IL final ≥ iteration 0 + 2 m and ≥ 15 m | {name} | {seeds} "
+                         f"| {final:.2f} m against {start:.2f} m at iteration 0 | {met(final >= start + 2 and final >= 15)} |")
+        worst = max(rlil["exploit"], rl["exploit"])
+        lines.append(f"| 3. exploitation ≤ 0.3 m | {name} | {seeds} | RL+IL {rlil['exploit']:.2f}, RL {rl['exploit']:.2f} m "
+                     f"| {met(worst <= 0.3)} |")
+        if p == "b":
+            gap = np.mean(rlil["final"]) - np.mean(rl["final"])
+            lines.append(f"| 4. car: RL+IL final within 1 m of RL's | {name} | {seeds} | {gap:.2f} m | {met(abs(gap) <= 1)} |")
+        else:
+            ci = bootstrap_diff_ci(rlil["auc"], rl["auc"])
+            lines.append(f"| 4. RL+IL − RL in area under the curve: 95 % CI above 0 | {name} | {seeds} "
+                         f"| {np.mean(rlil['auc']) - np.mean(rl['auc']):.2f} {interval(ci)} | {met(ci[0] > 0)} |")
+        if p == "d":
+            first = {seed: c for seed, c in rlil["curves"].items() if seed < 5}
+            low = [seed for seed, c in first.items() if min(c[i] for i in range(1, iters + 1)) <= 15]
+            lines.append(f"| 5. main command, seeds 0-4: every iteration ≥ 1 above 15 m | {name} | {len(first)} "
+                         f"| {'seeds ' + ', '.join(map(str, low)) + ' below' if low else 'all above'} | {met(not low)} |")
+    return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------
+# Results tables: every results/*.md table from the committed CSVs, and the
+# README/docs blocks that show them
+# ----------------------------------------------------------------------------
+ROOT = Path(__file__).resolve().parents[1]          # the repository: results/, README.md, docs/
+ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md, its per-iteration table, methods
+    "figure3": ("figure3_iterations", ("RL+IL", "RL")),
+    "class_demo": ("class_demo", ("RL",)),                       # the class demo command has no demos
+}
+TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability"}
+BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
+
+
+def read_rows_csv(path: Path) -> list[dict]:
+    """The rows of a sweep's CSV as write_rows_csv wrote them: numbers as int or float (a float's
+    text is its repr, so the value is the one written), empty cells as None, TEXT_COLUMNS as text."""
+    def value(column, text):
+        if column in TEXT_COLUMNS:
+            return text
+        if text == "":
+            return None
+        try:
+            return int(text)
+        except ValueError:
+            return float(text)
+    with open(path, newline="") as f:
+        return [{k: value(k, v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def summarize_iterations(rows: list[dict]) -> str:
+    """Markdown, per panel and method (RL+IL before RL) and iteration: the number of seeds, the mean
+    of distance_m over them with its 95 % bootstrap CI, and its min - max."""
+    groups = {}                                   # (panel, train, demos) -> method -> iteration -> distances
+    for r in rows:
+        panel = groups.setdefault((r["panel"], r["train"], r["demos"]), {})
+        distances = panel.setdefault(r["method"], {}).setdefault(r["iteration"], [])
+        if r["distance_m"] is not None:
+            distances.append(r["distance_m"])
+    lines = ["| panel | method | iteration | seeds | mean (m) | 95 % CI of the mean (m) | min - max (m) |",
+             "|---|---|---|---|---|---|---|"]
+    order = {"RL+IL": 0, "RL": 1}
+    for (panel, design, demos), methods in groups.items():
+        for method in sorted(methods, key=lambda m: order.get(m, len(order))):
+            label = f"({panel}) {design}" + (f" ({demos.replace('+', ' + ')} demos)" if method == "RL+IL" else "")
+            for i, d in sorted(methods[method].items()):
+                lines.append(f"| {label} | {method} | {i} | {len(d)} | {np.mean(d):.2f} | "
+                             f"{interval(bootstrap_ci(d))} | {min(d):.2f} - {max(d):.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def seed_curves(rows: list[dict], seeds: int) -> str:
+    """Markdown: one line per seed below `seeds`, its distance at every iteration (one panel and method's rows)."""
+    curves = {}
+    for r in rows:
+        if r["seed"] < seeds:
+            curves.setdefault(r["seed"], {})[r["iteration"]] = r["distance_m"]
+    iters = sorted({i for c in curves.values() for i in c})
+    lines = ["| seed | " + " | ".join(f"it. {i} (m)" for i in iters) + " |", "|---" * (len(iters) + 1) + "|"]
+    lines += [f"| {s} | " + " | ".join(f"{c[i]:.2f}" if i in c else "" for i in iters) + " |"
+              for s, c in sorted(curves.items())]
+    return "\n".join(lines) + "\n"
+
+
+def figure3_table(rows: list[dict]) -> str:
+    """summarize_figure3 of a figure3.csv: iters = its largest iteration, seeds = its distinct
+    seeds, the panels it has.  Missing or failed runs are not in a CSV, so no note names them."""
+    iters = max(r["iteration"] for r in rows)
+    seeds = len({r["seed"] for r in rows})
+    panels = "".join(p for p in PANELS if any(r["panel"] == p for r in rows))
+    return summarize_figure3(rows, iters, seeds, panels=panels)
+
+
+TRANSFER_DIRS = ("transfer", "generalist")   # results/<dir>/transfer.csv, written by train.py --transfer --out
+
+
+def generalist_table(root: Path) -> str:
+    """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
+    iteration where the four single-design RL+IL runs together have used at least the generalist's
+    simulator steps, and at their last iteration (steps from the committed metrics.json)."""
+    results = root / "results"
+    generalist = transfer.read_csv(results / "generalist" / "transfer.csv")
+    saved = [json.loads(p.read_text()) for p in sorted((results / "generalist_runs").glob("*/metrics.json"))]
+    steps = {"generalist": max(m["iterations"][-1]["sim_steps"] for m in saved)}
+    single = [json.loads((results / "figure3_runs" / f"{design}-{'_'.join(demo)}-seed0" / "metrics.json").read_text())
+              ["iterations"] for design, demo in PANELS.values()]
+    total = [sum(its[k]["sim_steps"] for its in single) for k in range(len(single[0]))]
+    first = next((k for k, n in enumerate(total) if n >= steps["generalist"]), len(total) - 1)
+    steps.update({k: total[k] for k in dict.fromkeys((first, len(total) - 1))})
+    return transfer.generalist_table(generalist, read_rows_csv(results / "figure3.csv"), steps)
+
+
+def regenerate_tables(root: Path) -> dict[Path, str]:
+    """{results/NAME.md: its content regenerated from results/*.csv}.  figure3.csv and
+    sample_efficiency.csv must exist; a CSV of ITERATION_TABLES that does not is skipped."""
+    results, tables = root / "results", {}
+    for name in ("figure3", "sample_efficiency"):
+        if not (results / f"{name}.csv").exists():
+            raise UsageError(f"{results / name}.csv is missing")
+    rows = read_rows_csv(results / "figure3.csv")
+    tables[results / "figure3.md"] = figure3_table(rows)
+    tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
+                                                             len({r["seed"] for r in rows}))
+    if (results / "stability_confirm.csv").exists():     # the README's main command: panel (d), RL+IL, today's defaults
+        main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")
+                if r["variant"].startswith("default") and r["panel"] == "d" and r["method"] == "RL+IL"]
+        tables[results / "main_command.md"] = summarize_iterations(main)
+        tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
+    rows = read_rows_csv(results / "sample_efficiency.csv")
+    tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
+    for name, variants, baseline in (("stability_screen", SCREEN, "paper"), ("stability_confirm", CONFIRM, "paper"),
+                                     ("stability_screen_defaults", SCREEN_OVER_DEFAULTS, DEFAULT)):
+        if (results / f"{name}.csv").exists():
+            tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants,
+                                                                baseline)
+    if (results / "stability_confirm.csv").exists():
+        rows = read_rows_csv(results / "stability_confirm.csv")
+        tables[results / "stability_targets.md"] = "\n".join(
+            f"**{variant}**\n\n{summarize_targets(rows, variant)}" for variant in CONFIRM)
+    transfer_csvs = [results / d / "transfer.csv" for d in TRANSFER_DIRS if (results / d / "transfer.csv").exists()]
+    if transfer_csvs:                                   # Figure 3's policies and the generalists
+        tables[results / "transfer_summary.md"] = transfer.group_table(
+            [r for path in transfer_csvs for r in transfer.read_csv(path)])
+    if (results / "generalist" / "transfer.csv").exists():
+        tables[results / "generalist.md"] = generalist_table(root)
+    for name, (md, methods) in ITERATION_TABLES.items():
+        if (results / f"{name}.csv").exists():
+            tables[results / f"{md}.md"] = summarize_iterations(
+                [r for r in read_rows_csv(results / f"{name}.csv") if r["method"] in methods])
+    return tables
+
+
+def fill_blocks(text: str, table, where: Path) -> str:
+    """`text` with the lines between every `<!-- begin: results/NAME.md -->` line and its
+    `<!-- end: ... -->` line replaced by table(NAME); the marker lines stay."""
+    lines, out, k = text.splitlines(keepends=True), [], 0
+    while k < len(lines):
+        out.append(lines[k])
+        m = re.fullmatch(r"<!-- begin: results/(.+)\.md -->", lines[k].rstrip("\r\n"))
+        k += 1
+        if not m:
+            continue
+        end = next((j for j in range(k, len(lines)) if lines[j].rstrip("\r\n") == END.format(m[1])), None)
+        if end is None:
+            raise UsageError(f"{where}: {BEGIN.format(m[1])} has no {END.format(m[1])} line")
+        content = table(m[1])
+        out += [content + "\n" * (not content.endswith("\n"))] + [lines[end]]
+        k = end + 1
+    return "".join(out)
+
+
+def tables(root: Path = None, check: bool = False) -> list[Path]:
+    """Regenerate the results tables under `root` (default: this repository) and the README.md and
+    docs/*.md blocks that show them; return every file whose content differs from the regenerated
+    one, writing them unless `check`.  A block naming a results/NAME.md that neither is regenerated
+    nor exists is a UsageError."""
+    root = Path(root or ROOT)
+    new = regenerate_tables(root)
+
+    def table(name):
+        path = root / "results" / f"{name}.md"
+        if path in new:
+            return new[path]
+        if not path.exists():
+            raise UsageError(f"a block names {path}, which does not exist")
+        return path.read_text()
+
+    for doc in [root / "README.md", *sorted((root / "docs").rglob("*.md"))]:
+        if doc.exists():
+            new[doc] = fill_blocks(doc.read_text(), table, doc)
+    stale = [p for p, text in new.items() if not p.exists() or p.read_text() != text]
+    if not check:
+        for p in stale:
+            atomic_write(p, lambda tmp, text=new[p]: Path(tmp).write_text(text))
+    return stale
+
+
+def main(argv=None) -> int:
+    parser = sim2d.CliParser(description="Regenerate the results tables (results/*.md) from the committed CSVs, "
+                             "and the README.md and docs/**/*.md blocks that show them.")
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 naming every file that differs")
+    parser.add_argument("--screen", action="store_true",
+                        help="first rebuild results/stability_screen.csv, stability_confirm.csv and "
+                             "stability_screen_defaults.csv from the committed runs (results/stability_runs/"
+                             "<variant>/, the defaults' in results/figure3_runs/)")
+    args = parser.parse_args(argv)
+    if args.screen and args.check:
+        parser.error("--screen writes the screens' CSVs: leave out --check")
+    if args.screen:
+        for name, variants, seeds, panels in (("stability_screen", SCREEN, SCREEN_SEEDS, SCREEN_PANELS),
+                                              ("stability_confirm", CONFIRM, 10, "abcd"),
+                                              ("stability_screen_defaults", SCREEN_OVER_DEFAULTS, SCREEN_SEEDS,
+                                               SCREEN_PANELS)):
+            rows = variant_rows(ROOT, variants, seeds, panels)
+            write_rows_csv(ROOT / "results" / f"{name}.csv", ["variant"] + FIGURE3_COLUMNS, rows)
+            runs = len({(r["variant"], r["panel"], r["method"], r["seed"]) for r in rows})
+            print(f"wrote results/{name}.csv: {runs} runs")
+    try:
+        stale = tables(ROOT, check=args.check)
+    except UsageError as e:
+        parser.error(str(e))
+    for p in stale:
+        print(f"{'differs' if args.check else 'wrote'}: {p.relative_to(ROOT)}")
+    return 1 if args.check and stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
