@@ -170,21 +170,29 @@ def preset(name: str = "default", **overrides) -> Config:
     return from_preset(Config, PRESETS, name, **overrides)
 
 
+MAX_SEED = 2 ** 63 - 1        # seeds are 0..MAX_SEED (numpy takes any, torch.manual_seed 64 bits)
+
+
 def check_ranges(cfg, at_least: dict) -> None:
     """A one-line ValueError naming the first numeric field of `cfg` or `cfg.gnn` out of range:
-    a field named in `at_least` must be at least that, log-std bounds finite, any other positive."""
+    every number finite, the seed at most MAX_SEED, a field named in `at_least` at least that,
+    log-std bounds any finite number, any other field positive."""
     numeric = [(f.name, getattr(cfg, f.name)) for f in dataclasses.fields(cfg)
                if f.name not in ("train", "demos", "gnn")]
     numeric += [(f.name, getattr(cfg.gnn, f.name)) for f in dataclasses.fields(cfg.gnn)]
     for name, value in numeric:
         if isinstance(value, bool):
             continue
+        if not math.isfinite(value):
+            raise ValueError(f"{name} must be a finite number, got {value}")
+        if name == "seed" and not 0 <= value <= MAX_SEED:
+            raise ValueError(f"seed must be from 0 to {MAX_SEED} (2^63 - 1), got {value}")
         if name.startswith("log_std"):
-            ok, accepted = math.isfinite(value), "a finite number"
-        elif name in at_least:
-            ok, accepted = math.isfinite(value) and value >= at_least[name], f"at least {at_least[name]}"
+            continue
+        if name in at_least:
+            ok, accepted = value >= at_least[name], f"at least {at_least[name]}"
         else:
-            ok, accepted = math.isfinite(value) and value > 0, "positive"
+            ok, accepted = value > 0, "positive"
         if not ok:
             raise ValueError(f"{name} must be {accepted}, got {value}")
     if cfg.gnn.log_std_min >= cfg.gnn.log_std_max:

@@ -834,10 +834,27 @@ def atomic_write(path, write) -> None:
 
 
 class CliParser(argparse.ArgumentParser):
-    """argparse, but bad input is one line on stderr and exit status 2 (no usage dump)."""
+    """argparse, but bad input is one line on stderr and exit status 2 (no usage dump), and a
+    negative number after a flag is that flag's value (argparse reads `--lr -1e-3` as two flags)."""
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        joined = []
+        for arg in sys.argv[1:] if args is None else args:
+            if joined and joined[-1].startswith("--") and "=" not in joined[-1] and _is_negative_number(arg):
+                joined[-1] += "=" + arg                         # --lr -1e-3 -> --lr=-1e-3
+            else:
+                joined.append(arg)
+        return super().parse_known_args(joined, namespace)
+
+
+def _is_negative_number(text: str) -> bool:
+    try:
+        return text.startswith("-") and not math.isnan(float(text))
+    except ValueError:
+        return False
 
 
 def main(argv=None) -> int:

@@ -41,31 +41,41 @@ import modular_rlil_minimal as rlil
 import ppo_minimal as ppo_lib
 import sim2d
 from experiments import sweeps, transfer
-from experiments.run_folders import (UsageError, all_flags, config_flags, config_from_dict, is_ppo, load_checkpoint,
-                                     check_new, load_policy, ppo_flags, prepare_run_dir, restore_run, run_name,
-                                     save_checkpoint, save_curve, save_metrics, save_rollouts)
+from experiments.run_folders import (UsageError, WriteError, all_flags, check_output_file, claim_run_dir,
+                                     config_flags, config_from_dict, is_ppo, load_checkpoint, load_policy, ppo_flags,
+                                     prepare_run_dir, restore_run, run_name, save_checkpoint, save_curve,
+                                     save_metrics, save_rollouts, write_or_say)
 from gnn import GNNConfig
 
 
 # ----------------------------------------------------------------------------
 # Ctrl-C and SIGTERM
 # ----------------------------------------------------------------------------
-PENDING_CTRL_C = []   # a Ctrl-C that arrived inside pymunk, raised at the next log line or checkpoint
+PENDING_SIGNAL = []   # a Ctrl-C or SIGTERM that arrived inside pymunk, raised at the next log line or checkpoint
 
 
-def on_ctrl_c(signum, frame) -> None:
-    """SIGINT: KeyboardInterrupt, except inside pymunk, whose cffi callbacks (freeing bodies) would
-    print the exception and swallow it; there it waits in PENDING_CTRL_C for `raise_pending_ctrl_c`."""
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) or SIGTERM (what a cluster scheduler sends at a time limit), handled alike."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def on_signal(signum, frame) -> None:
+    """SIGINT, SIGTERM: raise Interrupted, except inside pymunk, whose cffi callbacks (freeing bodies)
+    would print the exception and swallow it; there it waits in PENDING_SIGNAL for `raise_pending_signal`."""
     if frame is not None and "pymunk" in frame.f_code.co_filename:
-        PENDING_CTRL_C.append(signum)
+        PENDING_SIGNAL.append(signum)
         return
-    raise KeyboardInterrupt
+    raise Interrupted(signum)
 
 
-def raise_pending_ctrl_c() -> None:
-    if PENDING_CTRL_C:
-        PENDING_CTRL_C.clear()
-        raise KeyboardInterrupt
+def raise_pending_signal() -> None:
+    if PENDING_SIGNAL:
+        signum = PENDING_SIGNAL[0]
+        PENDING_SIGNAL.clear()
+        raise Interrupted(signum)
 
 
 # ----------------------------------------------------------------------------
@@ -82,54 +92,64 @@ def run(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
     """
     print_line = log or rlil.ProgressLog()
 
-    def say(message: str) -> None:                 # a Ctrl-C that waited inside pymunk is raised here
-        raise_pending_ctrl_c()
+    def say(message: str) -> None:                 # a signal that waited inside pymunk is raised here
+        raise_pending_signal()
         print_line(message)
     try:
         cfg = (ppo_lib if is_ppo(cfg) else rlil).validate_config(cfg)
     except ValueError as e:
         raise UsageError(str(e))
+    lock, created = claim_run_dir(out)             # one writer per folder, from here to the end
+    try:
+        return train_in(cfg, out, resume, force, say, cache_dir)
+    except BaseException:
+        if created and not (out / "checkpoint.pt").exists():
+            shutil.rmtree(out, ignore_errors=True)          # nothing half-made is left behind
+        raise
+    finally:
+        lock.close()
+
+
+def train_in(cfg, out: Path, resume: bool, force: bool, say, cache_dir) -> list[dict]:
+    """`run` in the folder it has claimed."""
     budget = "env_steps" if is_ppo(cfg) else "iters"          # the one field a resume may change
     resuming = resume and (out / "checkpoint.pt").exists()
     run = None
     if resuming:
-        ckpt = load_checkpoint(out / "checkpoint.pt")
+        path = out / "checkpoint.pt"
+        ckpt = load_checkpoint(path)
+        if not isinstance(ckpt, dict) or not isinstance(ckpt.get("config"), dict):
+            raise UsageError(f"{path} holds no run config: it is not a training checkpoint; start a new --out")
         saved = config_from_dict(ckpt["config"])
         if type(saved) is not type(cfg) or dataclasses.replace(saved, **{budget: getattr(cfg, budget)}) != cfg:
             raise UsageError(f"--resume with a different configuration than {out}'s: only "
                              f"--{budget.replace('_', '-')} may change (start a new --out for other settings)")
-        run = restore_run(ckpt, cfg)
+        run = restore_run(ckpt, cfg, path)
         say(f"resuming {out} after iteration {run.iteration}")
-    created = not out.exists()
     prepare_run_dir(out, resume, force and not resuming)
     total = ppo_lib.iterations(cfg) if is_ppo(cfg) else cfg.iters
     durations, last = [], {"t": time.perf_counter(), "iteration": run.iteration if run else 0}
 
     def on_iteration(run) -> None:          # after iteration 0 and every later one (PPO: every evaluation)
-        raise_pending_ctrl_c()
-        save_checkpoint(out, run)
-        save_metrics(out, run.cfg, run.metrics)
-        save_curve(out, run.cfg, run.metrics)
+        raise_pending_signal()
+        write_or_say(out / "checkpoint.pt", lambda: save_checkpoint(out, run))
+        write_or_say(out / "metrics.json", lambda: save_metrics(out, run.cfg, run.metrics))
+        write_or_say(out / "curve.png", lambda: save_curve(out, run.cfg, run.metrics))
         if run.iteration > last["iteration"]:
             durations.append((time.perf_counter() - last["t"]) / (run.iteration - last["iteration"]))
             say(f"iteration {run.iteration}/{total} done; about "
                 f"{(total - run.iteration) * np.mean(durations):.0f} s left")
         last.update(t=time.perf_counter(), iteration=run.iteration)
 
-    try:
-        demo_data = rlil.load_demos(cfg, cache_dir)
-        if demo_data:
-            say("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
-                                       for d, v in demo_data.items()))
-        if is_ppo(cfg):
-            run = ppo_lib.ppo(cfg, run=run, log=say, on_evaluation=on_iteration, demo_data=demo_data)
-        else:
-            run = rlil.algorithm1(cfg, demo_data, run=run, log=say, on_iteration=on_iteration)
-    except BaseException:
-        if created and not (out / "checkpoint.pt").exists():
-            shutil.rmtree(out, ignore_errors=True)          # nothing half-made is left behind
-        raise
-    save_rollouts(out, run)
+    demo_data = rlil.load_demos(cfg, cache_dir)
+    if demo_data:
+        say("demos: " + ", ".join(f"{sim2d.design_name(d)} {len(v.actions)} x {v.actions.shape[1]}"
+                                  for d, v in demo_data.items()))
+    if is_ppo(cfg):
+        run = ppo_lib.ppo(cfg, run=run, log=say, on_evaluation=on_iteration, demo_data=demo_data)
+    else:
+        run = rlil.algorithm1(cfg, demo_data, run=run, log=say, on_iteration=on_iteration)
+    write_or_say(out / "rollout.gif", lambda: save_rollouts(out, run))
     dist = " ".join(f"{m['distance_m']:.2f}" for m in run.metrics)
     say(f"done: distance per {'evaluation' if is_ppo(cfg) else 'iteration'} (m) {dist}; outputs in {out}")
     return run.metrics
@@ -139,7 +159,8 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None, png: str | 
                  force: bool = False) -> float:
     """Zero-shot or not: the saved policy on any design, distance in 200 steps from the run's
     evaluation starts."""
-    check_new([gif, png], force)
+    check_output_file(gif, ".gif", "--gif", force)
+    check_output_file(png, ".png", "--png", force)
     cfg, policy, iteration = load_policy(run_dir)
     torch.set_num_threads(cfg.threads)                  # as the run evaluated itself
     graph = sim2d.design_graph(design)
@@ -149,10 +170,10 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None, png: str | 
           f"{len(d)} starts, min {d.min():.2f} m, max {d.max():.2f} m, flipped {int(result.flipped.sum())}")
     title = f"{run_dir.name} on {graph.name}: {d[0]:.1f} m in {cfg.eval_steps} steps"
     if gif:
-        sim2d.save_gif(graph, result.states[0], gif, every=2, title=title)
+        sim2d.atomic_write(Path(gif), lambda p: sim2d.save_gif(graph, result.states[0], p, every=2, title=title))
         print(f"wrote {gif}")
     if png:
-        sim2d.save_png(graph, result.states[0], png, title=title)
+        sim2d.atomic_write(Path(png), lambda p: sim2d.save_png(graph, result.states[0], p, title=title))
         print(f"wrote {png}")
     print(f"design={graph.code} distance_m={d.mean():.4f}")
     return float(d.mean())
@@ -313,26 +334,26 @@ def print_plan(lines: list[str]) -> int:
     return 0
 
 
-def resume_hint(out: Path, argv: list[str]) -> str:
-    """The one line Ctrl-C prints: what `out` keeps and the command that continues the run."""
+def what_was_kept(out: Path, argv: list[str]) -> str:
+    """What `out` keeps and the command that continues the run (the end of an interrupted run's line)."""
     try:
         done = torch.load(out / "checkpoint.pt", weights_only=False)["iteration"]
     except Exception:                             # none yet, or cut short while being written
-        return f"interrupted before the first checkpoint: nothing was kept in {out}; run the same command again"
+        return f"nothing was kept in {out}; run the same command again"
     args = [a for a in argv if a not in ("--resume", "--force")]
     args += [] if "--out" in args else ["--out", str(out)]
     kept = f"iterations 0-{done}" if done else "iteration 0"
-    return (f"interrupted: {out} keeps {kept}; continue with: "
-            f"python train.py {' '.join(args)} --resume")
+    return f"{out} keeps {kept}; continue with: python train.py {' '.join(args)} --resume"
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
-    out = None                                    # the run directory a Ctrl-C reports on
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, on_ctrl_c)
+    out = None                                    # the run directory an interruption reports on
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(signum) in (signal.default_int_handler, signal.SIG_DFL):
+            signal.signal(signum, on_signal)
     try:
         if args.sample_efficiency or args.figure3:
             return sweep(args)
@@ -343,6 +364,10 @@ def main(argv=None) -> int:
         if args.designs:
             raise UsageError("--designs goes with --transfer (--eval and --compare take one --design)")
         if args.eval:
+            given = [flag for flag, dest, _ in config_flags() + ppo_flags() if getattr(args, dest) is not None]
+            if given or args.resume or args.out or args.method != "rlil" or args.preset != "default":
+                raise UsageError(f"--eval evaluates a saved run with its own settings: leave out "
+                                 f"{(given or ['--resume, --out, --method and --preset'])[0]}")
             if not args.design:
                 raise UsageError("--eval needs --design DESIGN")
             try:
@@ -351,6 +376,8 @@ def main(argv=None) -> int:
                 raise UsageError(str(e))
             evaluate_run(Path(args.eval), args.design, args.gif, args.png, args.force)
             return 0
+        if args.design or args.gif or args.png:
+            raise UsageError("--design, --gif and --png go with --eval or --compare")
         if not args.train:
             raise UsageError("say what to train with --train DESIGN [DESIGN ...] (or --eval RUN_DIR)")
         if args.resume and args.force:
@@ -363,13 +390,17 @@ def main(argv=None) -> int:
         return 0
     except UsageError as e:
         parser.error(str(e))
-    except KeyboardInterrupt:
+    except WriteError as e:
+        print(f"{parser.prog}: error: {e}; {what_was_kept(out, argv)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt as e:
+        signum = getattr(e, "signum", signal.SIGINT)
         if out is None:                           # a sweep: every run is a run directory of its own
-            print("interrupted: finished runs are kept, interrupted ones continue from their last "
-                  "checkpoint: run the same command again", file=sys.stderr)
+            print(f"interrupted ({signal.Signals(signum).name}): finished runs are kept, interrupted ones "
+                  "continue from their last checkpoint: run the same command again", file=sys.stderr)
         else:
-            print(resume_hint(out, argv), file=sys.stderr)
-        return 130
+            print(f"interrupted ({signal.Signals(signum).name}): {what_was_kept(out, argv)}", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import fcntl
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -174,7 +176,14 @@ def load_checkpoint(path: Path) -> dict:
         raise UsageError(f"cannot read checkpoint {path} ({type(e).__name__}): the file is corrupt or not from train.py")
 
 
-def restore_run(ckpt: dict, cfg):
+def restore_run(ckpt: dict, cfg, path: Path):
+    """The run a checkpoint.pt holds, to continue it; a UsageError for a file that is not one."""
+    needs = {"policy", "iteration", "metrics", "rng"} | ({"value", "opt", "sim_steps", "return_scale"} if is_ppo(cfg)
+                                                         else {"model", "data", "il_weight"})
+    if not isinstance(ckpt, dict) or needs - set(ckpt):
+        raise UsageError(f"{path} is not a training checkpoint (it lacks "
+                         f"{', '.join(sorted(needs - set(ckpt if isinstance(ckpt, dict) else ())))}; a policy.pt?): "
+                         "it cannot be resumed; start a new --out")
     if is_ppo(cfg):
         run = ppo_lib.new_run(cfg)
         run.policy.load_state_dict(ckpt["policy"])
@@ -204,25 +213,81 @@ def save_rollouts(out: Path, run) -> None:
 # ----------------------------------------------------------------------------
 # The run folder, a saved policy
 # ----------------------------------------------------------------------------
-def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
+LOCK = ".lock"          # in a run folder: locked (fcntl.flock) by the one process writing it
+
+
+def claim_run_dir(out: Path):
+    """Hold the run folder `out` (made if missing) for this process alone: an exclusive lock on
+    out/.lock, taken atomically and let go when the file is closed or the process ends, however it
+    ends.  A second writer, at whatever moment it starts, gets a UsageError naming the holder.
+    Returns (the open lock file: close it to let go, whether this call made the folder)."""
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file, not a directory: name a new or existing run directory")
-    existing = [f for f in OUTPUTS if (out / f).exists()]
-    if existing and not (resume or force):
-        raise UsageError(f"{out} already holds a run ({', '.join(existing)}): "
-                         "use --resume to continue it or --force to start afresh")
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
-        tempfile.TemporaryFile(dir=out).close()                  # can files be written there?
+        lock = open(out / LOCK, "a+")
     except OSError as e:
         if created and out.is_dir():
             shutil.rmtree(out, ignore_errors=True)
         raise UsageError(f"cannot write the run directory {out} ({e.strerror or type(e).__name__}): "
                          "name a directory you can write with --out")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        lock.seek(0)
+        holder = lock.read().strip() or "another process"
+        lock.close()
+        raise UsageError(f"{out} is being written by {holder}: wait for it to end, or name another --out")
+    lock.truncate(0)
+    lock.write(f"train.py (pid {os.getpid()})\n")
+    lock.flush()
+    return lock, created
+
+
+def prepare_run_dir(out: Path, resume: bool, force: bool) -> None:
+    """Refuse a claimed folder that already holds a run unless `resume` or `force`; `force`
+    removes its outputs."""
+    existing = [f for f in OUTPUTS if (out / f).exists()]
+    if existing and not (resume or force):
+        raise UsageError(f"{out} already holds a run ({', '.join(existing)}): "
+                         "use --resume to continue it or --force to start afresh")
     if force:
         for f in existing:
             (out / f).unlink()
+
+
+class WriteError(Exception):
+    """A run's file could not be written (a full disk, an I/O error): one line, then how to resume."""
+
+
+def write_or_say(path: Path, write) -> None:
+    """write(), any OSError (or torch's RuntimeError from a failed write) as a WriteError naming `path`."""
+    try:
+        write()
+    except (OSError, RuntimeError) as e:
+        reason = e.strerror if isinstance(e, OSError) and e.strerror else str(e).splitlines()[0][:120]
+        raise WriteError(f"cannot write {path} ({reason})") from e
+
+
+def check_output_file(path, suffix: str, flag: str, force: bool) -> None:
+    """Before any work: `path` (None: nothing asked) must end in `suffix`, sit in an existing folder
+    this process can write, and not be a folder or (without `force`) an existing file."""
+    if path is None:
+        return
+    path = Path(path)
+    if path.suffix.lower() != suffix:
+        raise UsageError(f"{flag} {path}: name a {suffix} file")
+    if path.is_dir():
+        raise UsageError(f"{flag} {path} is a folder: name a {suffix} file in it")
+    if not path.parent.resolve().is_dir():
+        raise UsageError(f"{flag} {path}: no folder {path.parent}")
+    try:
+        tempfile.TemporaryFile(dir=path.parent).close()
+    except OSError as e:
+        raise UsageError(f"{flag} {path}: cannot write in {path.parent} ({e.strerror or type(e).__name__})")
+    if path.exists() and not force:
+        raise UsageError(f"{path} already exists: use --force to replace it, or name another file")
 
 
 def load_policy(run_dir: Path):

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +37,8 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 import demos                                                                                 # noqa: E402
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import sim2d                                                                                 # noqa: E402
-from experiments.run_folders import UsageError, check_new, load_policy, method_of            # noqa: E402
+from experiments.run_folders import (UsageError, check_new, check_output_file, load_policy,  # noqa: E402
+                                     method_of)
 from experiments.stats import bootstrap_ci                                                   # noqa: E402
 from sim2d import atomic_write                                                               # noqa: E402
 
@@ -314,11 +316,18 @@ def transfer(run_dirs, named=FIGURE3_DESIGNS, out="runs/transfer", force: bool =
     check_new([out / f for f in OUTPUTS], force)
     runs = [load_trained(d) for d in run_dirs]
     designs = list(dict.fromkeys(design_codes(named) + read_held_out()))
+    created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()                  # can files be written there?
     except OSError as e:
-        raise UsageError(f"cannot make the folder {out} ({e.strerror or type(e).__name__}): name another --out")
-    rows = transfer_rows(runs, designs)
+        raise UsageError(f"cannot write the folder {out} ({e.strerror or type(e).__name__}): name another --out")
+    try:
+        rows = transfer_rows(runs, designs)
+    except BaseException:
+        if created and not any(out.iterdir()):
+            out.rmdir()                                          # nothing half-made is left behind
+        raise
     atomic_write(out / "transfer.csv", lambda p: write_csv(rows, p))
     atomic_write(out / "transfer.png", lambda p: save_heatmap(rows, p))
     text = summary_markdown(rows)
@@ -394,12 +403,8 @@ def compare(run_a, run_b, gif, design: str | None = None, png: str | None = None
         graph = sim2d.design_graph(design or a.cfg.train[0])
     except ValueError as e:
         raise UsageError(str(e))
-    if Path(gif).suffix.lower() != ".gif":
-        raise UsageError(f"--gif {gif}: name a .gif file")
-    for f in (gif, png):
-        if f and not Path(f).resolve().parent.is_dir():
-            raise UsageError(f"cannot write {f}: no folder {Path(f).parent}")
-    check_new([gif, png], force)
+    check_output_file(gif, ".gif", "--gif", force)
+    check_output_file(png, ".png", "--png", force)
     trajectories = compare_trajectories(a, b, graph.code)
     labels = [run.label for run in (a, b)]
     for run, s in zip((a, b), trajectories):

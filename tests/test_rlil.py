@@ -11,10 +11,8 @@ import copy
 import dataclasses
 import json
 import math
-import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -436,28 +434,6 @@ def test_a_run_failing_before_its_first_checkpoint_leaves_no_directory(tmp_path,
     with pytest.raises(ZeroDivisionError):
         train.run(tiny(train=("car",)), tmp_path / "run", log=quiet, cache_dir=cache)
     assert not (tmp_path / "run").exists()
-
-
-def test_ctrl_c_says_what_was_kept_and_the_printed_command_continues_the_run(tmp_path):
-    """Ctrl-C after the first checkpoint: exit 130, one line on stderr (no traceback) naming
-    what the run keeps and a command; that command resumes the run to its end."""
-    out = tmp_path / "run"
-    args = ["--train", "car", "--preset", "tiny", "--iters", "1", "--eval-steps", "30", "--policy-steps", "60",
-            "--out", str(out)]
-    proc = subprocess.Popen([sys.executable, "train.py", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    deadline = time.time() + 60
-    while not (out / "metrics.json").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGINT)
-    err = proc.communicate(timeout=60)[1]
-    assert proc.returncode == 130 and err.count("\n") == 1 and "Traceback" not in err, err
-    assert f"{out} keeps iteration 0" in err and err.strip().endswith("--resume"), err
-    command = err.split("continue with: ")[1].split()
-    assert command[:2] == ["python", "train.py"]
-    done = subprocess.run([sys.executable, *command[1:]], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    assert [r["iteration"] for r in json.loads((out / "metrics.json").read_text())["iterations"]] == [0, 1]
 
 
 def test_cli_eval_zero_shot(tmp_path, cache):
