@@ -27,6 +27,7 @@ import argparse
 import ast
 import dataclasses
 import inspect
+import shlex
 import shutil
 import signal
 import sys
@@ -221,7 +222,7 @@ def build_parser() -> sim2d.CliParser:
                    help="run the paper's Figure 3 sweep: 4 panels x {RL, RL+IL} x seeds")
     p.add_argument("--seeds", type=int, default=3, help="with --figure3 or --sample-efficiency: seeds per condition (default 3)")
     p.add_argument("--jobs", type=int, default=2, help="with --figure3 or --sample-efficiency: runs in parallel processes (default 2)")
-    p.add_argument("--panels", default="abcd", help="with --figure3: which panels, e.g. ad (default abcd)")
+    p.add_argument("--panels", help="with --figure3: which panels, e.g. ad (default abcd)")
     p.add_argument("--launcher", choices=sweeps.LAUNCHERS, default="local",
                    help="with a sweep: local processes (--jobs at a time), or Ray tasks of one CPU each "
                         "(pip install -r requirements-ray.txt)")
@@ -231,6 +232,8 @@ def build_parser() -> sim2d.CliParser:
                    "run (for a SLURM job array, GNU parallel, ...) and run nothing")
     p.add_argument("--collect", metavar="DIR", help="with a sweep: run nothing; make the plot, CSV and summary "
                    "from the run directories in DIR (written to --out, default DIR), naming the missing ones")
+    p.add_argument("--accept-other-configs", action="store_true", help="with a sweep: use run folders made with "
+                   "other settings as they are (named in a warning) instead of refusing them")
     p.add_argument("--method", choices=("rlil", "ppo"), default="rlil",
                    help="rlil: Algorithm 1 (RL+IL with --demos, else RL); ppo: the model-free baseline "
                         "(ppo_minimal.py) on the same modular policy")
@@ -294,9 +297,35 @@ def config_from_args(args, method: str | None = None, strict: bool = True):
 
 def sweep(args) -> int:
     """--figure3 or --sample-efficiency: run, plan or collect the sweep (experiments/sweeps.py); exit
-    status 1 when a run is missing or failed."""
-    if args.seeds < 1 or args.jobs < 1:
-        raise UsageError(f"--seeds and --jobs must be positive integers, got {args.seeds} and {args.jobs}")
+    status 1 when a run is missing or failed, 128 + the signal's number when SIGTERM or Ctrl-C stopped
+    it (its runs keep their finished iterations; the same command continues it).  A flag the sweep
+    would not use is a UsageError."""
+    name = "--figure3" if args.figure3 else "--sample-efficiency"
+    if args.figure3 and args.sample_efficiency:
+        raise UsageError("--figure3 and --sample-efficiency are two sweeps: run one at a time")
+    if not 1 <= args.seeds <= sweeps.MAX_SEEDS or not 1 <= args.jobs <= sweeps.MAX_JOBS:
+        raise UsageError(f"--seeds takes 1 to {sweeps.MAX_SEEDS} and --jobs 1 to {sweeps.MAX_JOBS}, "
+                         f"got {args.seeds} and {args.jobs}")
+    for flag, value in (("--train", args.train), ("--demos", args.demos), ("--seed", args.seed)):
+        if value is not None:
+            raise UsageError(f"{flag} does nothing with {name}: a sweep sets each run's designs, demos and seed "
+                             "itself (--seeds N: seeds 0 to N-1)")
+    if args.resume or args.force:
+        raise UsageError(f"--resume and --force do nothing with {name}: a sweep continues its unfinished runs "
+                         "itself and never replaces finished ones (move a run folder away to run it again)")
+    for flag, value in (("--eval", args.eval), ("--design", args.design), ("--designs", args.designs),
+                        ("--gif", args.gif), ("--png", args.png), ("--transfer", args.transfer),
+                        ("--compare", args.compare)):
+        if value is not None:
+            raise UsageError(f"{flag} does not go with {name} (it belongs to --eval, --transfer or --compare)")
+    if args.method == "ppo":
+        raise UsageError(f"--method ppo does nothing with {name}: " + (
+            "Figure 3 compares Algorithm 1's RL+IL and RL (--sample-efficiency runs PPO beside them)"
+            if args.figure3 else "it runs RL, RL+IL, PPO and PPO+IL, PPO's flags setting its PPO runs"))
+    if args.sample_efficiency and args.panels is not None:
+        raise UsageError("--panels goes with --figure3 (--sample-efficiency runs hexapod and leg_none_wheel)")
+    if args.threads is not None and args.jobs > 1:
+        raise UsageError("--threads applies to a sweep only with --jobs 1: runs in parallel get one torch thread each")
     if args.ray_address and args.launcher != "ray":
         raise UsageError("--ray-address goes with --launcher ray")
     if (args.plan or args.collect) and args.launcher != "local":
@@ -307,22 +336,38 @@ def sweep(args) -> int:
         raise UsageError(f"--collect {args.collect}: no such folder of run directories")
     collect = Path(args.collect) if args.collect else None
     out = Path(args.out) if args.out else collect or Path("runs/figure3" if args.figure3 else "runs/sample_efficiency")
+    warn = lambda line: print(line, file=sys.stderr)          # noqa: E731  (--plan's stdout is the plan)
     if args.figure3:
+        args.panels = "abcd" if args.panels is None else args.panels
         if not args.panels or set(args.panels) - set(sweeps.PANELS):
             raise UsageError(f"--panels takes letters from abcd, got {args.panels!r}")
+        ppo_only = [flag for flag, dest, _ in ppo_flags() if getattr(args, dest) is not None]
+        if ppo_only:
+            raise UsageError(f"{ppo_only[0]} is PPO's: --figure3 runs Algorithm 1 only (--sample-efficiency "
+                             "runs PPO too)")
         base = config_from_args(args)
-        if args.plan:
-            return print_plan(sweeps.plan_lines(sweeps.figure3_runs(out, base, args.seeds, args.jobs, args.panels),
-                                                base.iters))
-        problems = sweeps.figure3(out, base, args.seeds, args.jobs, panels=args.panels, launcher=args.launcher,
-                                  ray_address=args.ray_address, collect=collect)
+        runs, last = sweeps.figure3_runs(out, base, args.seeds, args.jobs, args.panels), base.iters
     else:
         base, base_ppo = config_from_args(args, "rlil", strict=False), config_from_args(args, "ppo", strict=False)
-        if args.plan:
-            return print_plan(sweeps.plan_lines(sweeps.sample_efficiency_runs(out, base, base_ppo, args.seeds,
-                                                                              args.jobs), 0))
-        problems = sweeps.sample_efficiency(out, base, base_ppo, args.seeds, args.jobs, launcher=args.launcher,
-                                            ray_address=args.ray_address, collect=collect)
+        runs, last = sweeps.sample_efficiency_runs(out, base, base_ppo, args.seeds, args.jobs), 0
+    if args.plan:
+        sweeps.check_reuse(runs, args.accept_other_configs, log=warn)
+        return print_plan(sweeps.plan_lines(runs, last))
+    command = ("python train.py " + shlex.join(sys.argv[1:]) if Path(sys.argv[0]).name == "train.py"
+               else "the same command")
+    try:
+        if args.figure3:
+            problems = sweeps.figure3(out, base, args.seeds, args.jobs, panels=args.panels, launcher=args.launcher,
+                                      ray_address=args.ray_address, collect=collect,
+                                      accept_other_configs=args.accept_other_configs)
+        else:
+            problems = sweeps.sample_efficiency(out, base, base_ppo, args.seeds, args.jobs, launcher=args.launcher,
+                                                ray_address=args.ray_address, collect=collect,
+                                                accept_other_configs=args.accept_other_configs)
+    except KeyboardInterrupt as e:                # SIGTERM or Ctrl-C (main's on_signal, launch_runs)
+        e = e if isinstance(e, sweeps.Interrupted) else sweeps.Interrupted(getattr(e, "signum", signal.SIGINT))
+        print(sweeps.interrupted_line(e, out, command), file=sys.stderr)
+        return 128 + e.signum
     return 1 if problems else 0
 
 
@@ -351,14 +396,17 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
     out = None                                    # the run directory an interruption reports on
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(signum) in (signal.default_int_handler, signal.SIG_DFL):
-            signal.signal(signum, on_signal)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:     # not when Ctrl-C is ignored (a background job)
+        signal.signal(signal.SIGINT, on_signal)
+    if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, signal.SIG_IGN):  # a time limit always stops a run cleanly
+        signal.signal(signal.SIGTERM, on_signal)
     try:
         if args.sample_efficiency or args.figure3:
             return sweep(args)
-        if args.launcher != "local" or args.ray_address or args.plan or args.collect:
-            raise UsageError("--launcher, --ray-address, --plan and --collect go with --figure3 or --sample-efficiency")
+        if (args.launcher != "local" or args.ray_address or args.plan or args.collect or args.accept_other_configs
+                or args.panels is not None):
+            raise UsageError("--launcher, --ray-address, --plan, --collect, --accept-other-configs and --panels go "
+                             "with --figure3 or --sample-efficiency")
         if args.transfer or args.compare:
             return transfer.main(args)
         if args.designs:

@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import re
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -247,10 +249,35 @@ TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability"
 BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
 
 
+@contextmanager
+def made_from(path: Path):
+    """Whatever goes wrong in the block (the file missing or unreadable, a row or run that is not
+    what the sweep wrote) is a UsageError of one line naming `path`."""
+    try:
+        yield
+    except UsageError:
+        raise
+    except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError, ZeroDivisionError, csv.Error) as e:
+        why = " ".join(str(e).split())[:200]
+        raise UsageError(f"{path}: cannot make its table ({type(e).__name__}: {why}); the file is cut short, "
+                         "edited or not what the sweep wrote (restore it, e.g. from git)")
+
+
+def check_complete(path: Path) -> None:
+    """A UsageError naming `path` when it does not end with a line end: written files always do, so
+    it was cut short (mid-row, mid-number)."""
+    with made_from(path):
+        with open(path, "rb") as f:
+            if f.seek(0, 2) and (f.seek(-1, 2), f.read(1))[1] != b"\n":
+                raise UsageError(f"{path} is cut short (its last line has no end): restore it, e.g. from git")
+
+
 def read_rows_csv(path: Path) -> list[dict]:
     """The rows of a sweep's CSV as write_rows_csv wrote them: numbers as int or float (a float's
-    text is its repr, so the value is the one written), empty cells as None, TEXT_COLUMNS as text."""
-    def value(column, text):
+    text is its repr, so the value is the one written), empty cells as None, TEXT_COLUMNS as text.
+    A file cut short, a row of too few or too many cells, or a cell that is no number is a
+    UsageError of one line naming the file and the line."""
+    def value(column, text, line):
         if column in TEXT_COLUMNS:
             return text
         if text == "":
@@ -258,9 +285,28 @@ def read_rows_csv(path: Path) -> list[dict]:
         try:
             return int(text)
         except ValueError:
-            return float(text)
-    with open(path, newline="") as f:
-        return [{k: value(k, v) for k, v in row.items()} for row in csv.DictReader(f)]
+            try:
+                return float(text)
+            except ValueError:
+                raise UsageError(f"{path}, line {line}: {column} is {text!r}, not a number: the file was edited "
+                                 "or is not what the sweep wrote")
+    check_complete(path)
+    rows = []
+    with made_from(path), open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        for row in reader:
+            if None in row or None in row.values():
+                raise UsageError(f"{path}, line {reader.line_num}: {len(row) - (None in row) - sum(v is None for v in row.values())}"
+                                 f" of {len(reader.fieldnames)} cells: the file is cut short or was edited")
+            rows.append({k: value(k, v, reader.line_num) for k, v in row.items()})
+    return rows
+
+
+def read_transfer_csv(path: Path) -> list[dict]:
+    """transfer.read_csv, a file cut short or not what --transfer wrote named in one line."""
+    check_complete(path)
+    with made_from(path):
+        return transfer.read_csv(path)
 
 
 def summarize_iterations(rows: list[dict]) -> str:
@@ -309,20 +355,62 @@ def figure3_table(rows: list[dict]) -> str:
 TRANSFER_DIRS = ("transfer", "generalist")   # results/<dir>/transfer.csv, written by train.py --transfer --out
 
 
+def run_steps(path: Path) -> list[int]:
+    """The simulator steps of every iteration of a committed metrics.json; a UsageError of one line
+    naming it when it cannot be read or a row has none."""
+    with made_from(path):
+        its = json.loads(path.read_text())["iterations"]
+        steps = [m["sim_steps"] for m in its]
+    if not steps or not all(isinstance(n, (int, float)) and not isinstance(n, bool) and math.isfinite(n) for n in steps):
+        raise UsageError(f"{path}: an iteration has no sim_steps (null, or no rows): restore it, e.g. from git")
+    return steps
+
+
 def generalist_table(root: Path) -> str:
     """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
     iteration where the four single-design RL+IL runs together have used at least the generalist's
     simulator steps, and at their last iteration (steps from the committed metrics.json)."""
     results = root / "results"
-    generalist = transfer.read_csv(results / "generalist" / "transfer.csv")
-    saved = [json.loads(p.read_text()) for p in sorted((results / "generalist_runs").glob("*/metrics.json"))]
-    steps = {"generalist": max(m["iterations"][-1]["sim_steps"] for m in saved)}
-    single = [json.loads((results / "figure3_runs" / f"{design}-{'_'.join(demo)}-seed0" / "metrics.json").read_text())
-              ["iterations"] for design, demo in PANELS.values()]
-    total = [sum(its[k]["sim_steps"] for its in single) for k in range(len(single[0]))]
+    generalist = read_transfer_csv(results / "generalist" / "transfer.csv")
+    paths = sorted((results / "generalist_runs").glob("*/metrics.json"))
+    if not paths:
+        raise UsageError(f"{results / 'generalist_runs'} holds no run's metrics.json: the generalist's table needs them")
+    steps = {"generalist": max(run_steps(p)[-1] for p in paths)}
+    singles = [results / "figure3_runs" / f"{design}-{'_'.join(demo)}-seed0" / "metrics.json"
+               for design, demo in PANELS.values()]
+    single = [run_steps(p) for p in singles]
+    short = min(range(len(single)), key=lambda k: len(single[k]))
+    if len(single[short]) != len(single[0]):
+        raise UsageError(f"{singles[short]} has {len(single[short])} iterations, {singles[0]} {len(single[0])}: the "
+                         "generalist's table needs the four seed-0 RL+IL runs of one sweep (restore them, e.g. from git)")
+    total = [sum(steps_k[k] for steps_k in single) for k in range(len(single[0]))]
     first = next((k for k, n in enumerate(total) if n >= steps["generalist"]), len(total) - 1)
     steps.update({k: total[k] for k in dict.fromkeys((first, len(total) - 1))})
     return transfer.generalist_table(generalist, read_rows_csv(results / "figure3.csv"), steps)
+
+
+def phase_table(path: Path) -> str:
+    """Markdown of tools/bench.py --phases' CSV: per phase (its parts indented under it) the seconds
+    and the share of the whole run, one pair of columns per thread count."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    threads = sorted({int(r["threads"]) for r in rows})
+    cpus = sorted({r["cpu_capability"] for r in rows})
+    cell = {(int(r["threads"]), r["phase"], r["part"]): (float(r["seconds"]), int(r["calls"])) for r in rows}
+    total = {t: cell[t, "the whole run", ""][0] for t in threads}
+    labels = list(dict.fromkeys((r["phase"], r["part"]) for r in rows))
+    lines = [f"The main command (`python train.py --train leg_none_wheel --demos hexapod car`, seed 0), timed by "
+             f"`python tools/bench.py --phases --threads N` on a 2-core machine (CPU capability "
+             f"{', '.join(cpus)}); a part's time is inside its phase's.", "",
+             "| phase | calls | " + " | ".join(f"{t} thread{'s' * (t > 1)}: s | share" for t in threads) + " |",
+             "|---|---|" + "---|---|" * len(threads)]
+    for phase, part in labels:
+        calls = next(cell[t, phase, part][1] for t in threads if (t, phase, part) in cell)
+        name = f"&nbsp;&nbsp;&nbsp;&nbsp;{part}" if part else (f"**{phase}**" if phase == "the whole run" else phase)
+        cells = [f"{cell[t, phase, part][0]:.1f} | {100 * cell[t, phase, part][0] / total[t]:.1f} %"
+                 if (t, phase, part) in cell else " | " for t in threads]
+        lines.append(f"| {name} | {calls} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def regenerate_tables(root: Path) -> dict[Path, str]:
@@ -332,36 +420,48 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     for name in ("figure3", "sample_efficiency"):
         if not (results / f"{name}.csv").exists():
             raise UsageError(f"{results / name}.csv is missing")
-    rows = read_rows_csv(results / "figure3.csv")
-    tables[results / "figure3.md"] = figure3_table(rows)
-    tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
-                                                             len({r["seed"] for r in rows}))
+    with made_from(results / "figure3.csv"):
+        rows = read_rows_csv(results / "figure3.csv")
+        tables[results / "figure3.md"] = figure3_table(rows)
+        tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
+                                                                 len({r["seed"] for r in rows}))
     if (results / "stability_confirm.csv").exists():     # the README's main command: panel (d), RL+IL, today's defaults
-        main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")
-                if r["variant"].startswith("default") and r["panel"] == "d" and r["method"] == "RL+IL"]
-        tables[results / "main_command.md"] = summarize_iterations(main)
-        tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
-    rows = read_rows_csv(results / "sample_efficiency.csv")
-    tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
+        with made_from(results / "stability_confirm.csv"):
+            main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")
+                    if r["variant"].startswith("default") and r["panel"] == "d" and r["method"] == "RL+IL"]
+            tables[results / "main_command.md"] = summarize_iterations(main)
+            tables[results / "main_command_seeds.md"] = seed_curves(main, 5)
+    with made_from(results / "sample_efficiency.csv"):
+        rows = read_rows_csv(results / "sample_efficiency.csv")
+        tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
     for name, variants, baseline in (("stability_screen", SCREEN, "paper"), ("stability_confirm", CONFIRM, "paper"),
                                      ("stability_screen_defaults", SCREEN_OVER_DEFAULTS, DEFAULT)):
         if (results / f"{name}.csv").exists():
-            tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants,
-                                                                baseline)
+            with made_from(results / f"{name}.csv"):
+                tables[results / f"{name}.md"] = summarize_variants(read_rows_csv(results / f"{name}.csv"), variants,
+                                                                    baseline)
     if (results / "stability_confirm.csv").exists():
-        rows = read_rows_csv(results / "stability_confirm.csv")
-        tables[results / "stability_targets.md"] = "\n".join(
-            f"**{variant}**\n\n{summarize_targets(rows, variant)}" for variant in CONFIRM)
+        with made_from(results / "stability_confirm.csv"):
+            rows = read_rows_csv(results / "stability_confirm.csv")
+            tables[results / "stability_targets.md"] = "\n".join(
+                f"**{variant}**\n\n{summarize_targets(rows, variant)}" for variant in CONFIRM)
     transfer_csvs = [results / d / "transfer.csv" for d in TRANSFER_DIRS if (results / d / "transfer.csv").exists()]
     if transfer_csvs:                                   # Figure 3's policies and the generalists
-        tables[results / "transfer_summary.md"] = transfer.group_table(
-            [r for path in transfer_csvs for r in transfer.read_csv(path)])
+        read = [r for path in transfer_csvs for r in read_transfer_csv(path)]
+        with made_from(" and ".join(map(str, transfer_csvs))):
+            tables[results / "transfer_summary.md"] = transfer.group_table(read)
     if (results / "generalist" / "transfer.csv").exists():
-        tables[results / "generalist.md"] = generalist_table(root)
+        with made_from(results / "generalist" / "transfer.csv"):
+            tables[results / "generalist.md"] = generalist_table(root)
+    if (results / "phase_profile.csv").exists():
+        check_complete(results / "phase_profile.csv")
+        with made_from(results / "phase_profile.csv"):
+            tables[results / "phase_profile.md"] = phase_table(results / "phase_profile.csv")
     for name, (md, methods) in ITERATION_TABLES.items():
         if (results / f"{name}.csv").exists():
-            tables[results / f"{md}.md"] = summarize_iterations(
-                [r for r in read_rows_csv(results / f"{name}.csv") if r["method"] in methods])
+            with made_from(results / f"{name}.csv"):
+                tables[results / f"{md}.md"] = summarize_iterations(
+                    [r for r in read_rows_csv(results / f"{name}.csv") if r["method"] in methods])
     return tables
 
 

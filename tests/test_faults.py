@@ -18,7 +18,8 @@ import modular_rlil_minimal as rlil
 import train
 from experiments import run_folders
 
-TINY = ["--train", "car", "--preset", "tiny", "--iters", "1", "--eval-steps", "30"]
+TINY = ["--train", "car", "--preset", "tiny", "--iters", "1", "--eval-steps", "30", "--eval-episodes", "2",
+        "--model-steps", "100", "--policy-steps", "10", "--random-episodes", "4"]      # seconds, not tens
 
 
 def one_line_error(args, capsys) -> str:
@@ -72,7 +73,7 @@ def test_a_signal_after_the_first_checkpoint_says_what_was_kept_and_the_command_
     """Ctrl-C or SIGTERM (a scheduler's time limit) after iteration 0's checkpoint: exit 128 + signal,
     one line on stderr naming what the run keeps and a command; that command resumes it to its end."""
     out = tmp_path / "run"
-    args = [*TINY, "--policy-steps", "60", "--out", str(out)]
+    args = [*TINY, "--policy-steps", "40", "--out", str(out)]
     proc = subprocess.Popen([sys.executable, "train.py", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     wait_for(lambda: (out / "metrics.json").exists(), proc)
@@ -137,7 +138,8 @@ def test_an_io_error_on_metrics_is_one_line_too(tmp_path, capsys, monkeypatch):
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
     out = tmp_path_factory.mktemp("finished") / "run"
-    train.run(rlil.preset("tiny", train=("car",), iters=1, eval_steps=30), out, log=lambda m: None)
+    train.run(rlil.preset("tiny", train=("car",), iters=1, eval_steps=30, eval_episodes=2, model_steps=100,
+                          policy_steps=10, random_episodes=4), out, log=lambda m: None)
     return out
 
 
@@ -170,8 +172,7 @@ def test_resume_of_a_policy_file_is_refused_in_one_line(finished, tmp_path, caps
     out = tmp_path / "copy"
     shutil.copytree(finished, out)
     shutil.copy(out / "policy.pt", out / "checkpoint.pt")
-    err = one_line_error(["--train", "car", "--preset", "tiny", "--iters", "2", "--eval-steps", "30",
-                          "--out", str(out), "--resume"], capsys)
+    err = one_line_error([*TINY, "--iters", "2", "--out", str(out), "--resume"], capsys)
     assert "is not a training checkpoint" in err and "a policy.pt?" in err
 
 

@@ -22,7 +22,7 @@ LAYERS = [
     ["demos", "gnn"],
     ["modular_rlil_minimal", "ppo_minimal"],
     ["experiments.stats", "experiments.run_folders"],
-    ["experiments.sweeps", "experiments.transfer", "experiments.tables",
+    ["experiments.sweeps", "experiments.transfer", "experiments.tables", "experiments.diagnosis",
      "tools.bench", "tools.check_physics", "tools.mutations"],
     ["train"],
 ]

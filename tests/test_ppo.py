@@ -345,13 +345,13 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
         assert lnw["args"][lnw["args"].index("--demos") + 1:][:2] == ["llllll", "wnwwnw"]
     assert not any("--demos" in r["args"] for r in runs if r["method"] in ("RL", "PPO"))
     for r in runs:
-        cfg = {"PPO": base_ppo, "PPO+IL": dataclasses.replace(base_ppo, demos=("llllll",))}.get(r["method"], base)
         r["dir"].mkdir(parents=True)
         rows = [{"iteration": i, "sim_steps": 1000 * (i + 1), "seconds": 10.0,
                  "distance_m": 4.0 * i + r["seed"] + (6.0 if r["method"] == "PPO" else 0.0)}
                 for i in range(r["last"] + 1)]
-        (r["dir"] / "metrics.json").write_text(json.dumps({"config": run_folders.config_to_dict(cfg), "iterations": rows}))
-    monkeypatch.setattr(subprocess, "run", lambda *a, **k: pytest.fail("a finished run was launched"))
+        (r["dir"] / "metrics.json").write_text(json.dumps({"config": run_folders.config_to_dict(r["cfg"]),
+                                                           "iterations": rows}))
+    monkeypatch.setattr(sweeps, "run_one", lambda *a, **k: pytest.fail("a finished run was launched"))
     assert sweeps.sample_efficiency(tmp_path, base, base_ppo, seeds=2, jobs=2, log=quiet) == []
     lines = (tmp_path / "sample_efficiency.csv").read_text().splitlines()
     assert lines[0] == "train,method,seed,iteration,sim_steps,seconds,distance_m"

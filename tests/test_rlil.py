@@ -436,6 +436,20 @@ def test_a_run_failing_before_its_first_checkpoint_leaves_no_directory(tmp_path,
     assert not (tmp_path / "run").exists()
 
 
+def test_every_iteration_is_evaluated_from_the_same_starts_and_seeds_differ(monkeypatch):
+    """Sec. IV's figure compares iterations: the same perturbed starts at every iteration (and in
+    --eval), another set for another seed, and none of the training data's seeds."""
+    seeds = []
+    episodes = sim2d.Episodes("wnwwnw", np.zeros((1, 2, 8)), {}, np.zeros((1, 1, 4)), np.zeros(1, bool))
+    monkeypatch.setattr(rlil, "evaluate_policy", lambda policy, design, cfg, seed: seeds.append(seed) or episodes)
+    monkeypatch.setattr(rlil, "model_bias", lambda *a: {"model_progress_m": 0.0})
+    cfg = smoke(train=("car",))
+    for i in range(3):
+        rlil.evaluate_iteration(None, None, ["car"], cfg, i)
+    assert seeds == [rlil.eval_seed(cfg)] * 3
+    assert rlil.eval_seed(dataclasses.replace(cfg, seed=1)) != seeds[0]
+
+
 def test_cli_eval_zero_shot(tmp_path, cache):
     train.run(smoke(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
@@ -462,7 +476,7 @@ def fake_sweep(tmp_path, skip=()):
         iterations = range(1 if k in skip else 2)
         rows = [{"iteration": i, "distance_m": float(i + k + (10 if r["method"] == "RL+IL" else 0))}
                 for i in iterations]
-        (r["dir"] / "metrics.json").write_text(json.dumps({"config": {}, "iterations": rows}))
+        (r["dir"] / "metrics.json").write_text(json.dumps({"config": dataclasses.asdict(r["cfg"]), "iterations": rows}))
     return base, runs
 
 
@@ -495,7 +509,7 @@ def test_figure3_names_a_failed_run_and_fails(tmp_path, monkeypatch):
     """A run that stops short is named in the summary and the plot, and the sweep reports failure
     (the command line exits 1); the other seed's final still counts, and only it."""
     base, runs = fake_sweep(tmp_path, skip={1})              # (a) RL+IL seed 1 has iteration 0 only
-    monkeypatch.setattr(subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(a, 1))
+    monkeypatch.setattr(sweeps, "run_one", lambda cmd, run_dir: 1)
     problems = sweeps.figure3(tmp_path, base, seeds=2, jobs=2, log=quiet)
     assert len(problems) == 1 and "(a) RL+IL seed 1" in problems[0] and "exit status 1" in problems[0]
     table = (tmp_path / "figure3.md").read_text()
@@ -590,4 +604,5 @@ def test_algorithm1_with_keep_better_continues_from_the_kept_policy(tmp_path, mo
     assert len(run.data["wnwwnw"].actions) == cfg.random_episodes + 3 * 2 * cfg.policy_episodes
     assert run.kept_return == 2.0
     run_folders.save_checkpoint(tmp_path, run)
-    assert run_folders.restore_run(run_folders.load_checkpoint(tmp_path / "checkpoint.pt"), cfg).kept_return == 2.0
+    path = tmp_path / "checkpoint.pt"
+    assert run_folders.restore_run(run_folders.load_checkpoint(path), cfg, path).kept_return == 2.0

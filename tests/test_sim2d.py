@@ -1,6 +1,5 @@
 """Tests of the planar world (sim2d.py): designs, physics sanity, determinism, reward, batching;
 and of its contacts and joints under aggressive actions (tools/check_physics.py)."""
-import re
 import subprocess
 import sys
 
@@ -177,6 +176,15 @@ def test_spline_actions_are_smooth_and_bounded():
     steps = np.abs(np.diff(a, axis=1))                     # white noise would give ~0.8 on average
     assert steps.mean() < 0.1 and steps.max() < 0.6        # 10 knots over 100 steps: no jumps
     assert a.std() > 0.3
+
+
+def test_spline_actions_pass_through_their_knots_drawn_with_the_given_std():
+    """Sec. III-B: 10 N(0, std^2) values per DoF, joined by the spline; over 100 steps the spline
+    parameter is a whole number at steps 0, 11, ..., 99, where the action is that knot's value."""
+    a = sim2d.random_spline_actions(np.random.default_rng(3), 4, 2, 100, std=0.3)
+    knots = np.random.default_rng(3).normal(0.0, 0.3, (4, 10, 2))           # the same draws
+    np.testing.assert_allclose(a[:, ::11], np.clip(knots, -1, 1), atol=1e-12)
+    assert 0.2 < a.std() < 0.4                                               # between knots: a smooth curve
 
 
 def test_rendering_writes_files(tmp_path):

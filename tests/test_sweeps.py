@@ -133,6 +133,21 @@ def test_probability_of_improvement_is_the_pair_count_and_mann_whitney_u():
     assert 0.0 <= lo <= stats.probability_of_improvement(x, y) <= hi <= 1.0
 
 
+def test_the_convergence_rule_and_the_area_under_the_curve_on_made_up_curves():
+    """Converged = the first iteration at 90 % of the panel's best final mean; a run that never gets
+    there counts iters + 1; area = the mean over iterations 1..iters, None for an unfinished run."""
+    rows = [{"panel": "a", "method": m, "seed": s, "iteration": i, "distance_m": d}
+            for m, curves in (("RL+IL", [[4, 9, 10], [5, 10, 10]]), ("RL", [[0, 1, 8.9], [0, 9.1, 9.5]]))
+            for s, curve in enumerate(curves) for i, d in enumerate(curve)]
+    runs, _, mean, threshold = sweeps.panel_curves(rows, "a", 2)
+    assert threshold == pytest.approx(9.0) and mean["RL+IL"][2] == 10          # 0.9 x the best final mean
+    assert [stats.iterations_to_converge(c, threshold, 2) for c in runs["RL+IL"].values()] == [1, 1]
+    assert [stats.iterations_to_converge(c, threshold, 2) for c in runs["RL"].values()] == [3, 1]   # 8.9: never
+    assert stats.area_under_curve({0: 4, 1: 9, 2: 10}, 2) == 9.5 and stats.area_under_curve({0: 4, 1: 9}, 2) is None
+    per = sweeps.per_run((runs, {}, mean, threshold), 2)
+    assert per["RL"] == {"converge": [3, 1], "auc": [4.95, 9.3], "final": [8.9, 9.5]}
+
+
 def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
     assert [stats.verdict(ci) for ci in ((0.1, 2.0), (-1.0, 1.0), (-2.0, -0.1))] == ["holds", "not settled", "fails"]
     assert [stats.verdict(ci, 1.0) for ci in ((-0.5, 0.9), (-1.5, 0.5), (1.2, 3.0))] == ["holds", "not settled", "fails"]

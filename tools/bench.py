@@ -42,8 +42,9 @@ import sim2d                                                                    
 from gnn import GNNConfig, ModularModel, ModularPolicy                                       # noqa: E402
 from ppo_minimal import (Memoryless, PPOConfig, collect_episodes, gae, new_run, ppo_update,  # noqa: E402
                          validate_config)
+from experiments import run_folders                                                          # noqa: E402
 from sim2d import (NAMED_DESIGNS, PHYSICS_SUBSTEPS, STEPS_PER_ACTION, SUBSTEP_DT, World,     # noqa: E402
-                   design_graph, joint_speed_scale, random_spline_actions)
+                   atomic_write, design_graph, joint_speed_scale, random_spline_actions)
 
 PROFILE_STEPS = ("policy", "bc", "model")
 
@@ -305,6 +306,128 @@ def print_ppo(design: str, threads: int) -> None:
 
 
 # ----------------------------------------------------------------------------
+# Phases: where the main command's time goes, phase by phase
+# ----------------------------------------------------------------------------
+PHASES = [   # (module, function, phase, part): every call of the function is timed under its label
+    (rlil, "load_demos", "demonstrations (made, not cached)", ""),
+    (rlil, "pretrain_bc", "line 1: behavioural cloning", ""),
+    (rlil, "collect_random_rollouts", "line 2: random spline data", ""),
+    (rlil, "add_clone_rollouts", "the clone's roll-outs (--clone-data)", ""),
+    (rlil, "train_model", "line 5: model fit", ""),
+    (rlil, "optimize_policy", "lines 7-26: policy phase", ""),
+    (rlil, "rl_loss", "lines 7-26: policy phase", "L_RL: the T-step model roll-out (forward)"),
+    (rlil, "il_loss", "lines 7-26: policy phase", "L_IL and the entropy penalty (forward)"),
+    (rlil, "gradient_step", "lines 7-26: policy phase", "line 21: backward pass and Adam step"),
+    (rlil, "refresh_buffer", "lines 7-26: policy phase", "lines 22-25: buffer refresh"),
+    (rlil, "validation_reward", "lines 7-26: policy phase", "validation checks (Sec. III-J)"),
+    (rlil, "add_policy_rollouts", "lines 28-29: policy data", ""),
+    (rlil, "improvement_check", "the improvement check (--keep-better)", ""),
+    (rlil, "evaluate_iteration", "evaluation (Sec. IV, 8 starts x 200 steps)", ""),
+]
+PHASE_COLUMNS = ["threads", "phase", "part", "calls", "seconds", "cpu_capability"]
+
+
+class PhaseTimer:
+    """Inclusive seconds and calls per label; a part is timed only inside its phase (il_loss in
+    line 1 belongs to line 1, in the policy phase to its L_IL part)."""
+
+    def __init__(self):
+        self.seconds, self.calls, self.open = {}, {}, []
+
+    def timed(self, fn, phase: str, part: str):
+        def wrapper(*args, **kwargs):
+            inside = bool(self.open) and self.open[-1] == phase
+            if part and not inside or not part and self.open:
+                return fn(*args, **kwargs)                  # a part outside its phase, or a phase in another
+            label = (phase, part)
+            self.open.append(phase if not part else label)
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.open.pop()
+                self.seconds[label] = self.seconds.get(label, 0.0) + time.perf_counter() - t0
+                self.calls[label] = self.calls.get(label, 0) + 1
+        return wrapper
+
+    def add(self, phase: str, seconds: float) -> None:
+        self.seconds[(phase, "")] = self.seconds.get((phase, ""), 0.0) + seconds
+        self.calls[(phase, "")] = self.calls.get((phase, ""), 0) + 1
+
+
+def profile_phases(cfg, workdir: Path) -> tuple[dict, dict, float]:
+    """Run `cfg` as train.py runs it (demonstrations made afresh in `workdir`, every output written
+    after every iteration) with PhaseTimer around PHASES and the outputs: (seconds, calls, total)."""
+    timer, saved = PhaseTimer(), [(m, name, getattr(m, name)) for m, name, _, _ in PHASES]
+    for m, name, phase, part in PHASES:
+        setattr(m, name, timer.timed(getattr(m, name), phase, part))
+    out = workdir / "run"
+    out.mkdir()
+
+    def write(phase, fn, *args):
+        t0 = time.perf_counter()
+        fn(*args)
+        timer.add(phase, time.perf_counter() - t0)
+
+    def on_iteration(run):
+        write("outputs: checkpoint.pt and policy.pt", run_folders.save_checkpoint, out, run)
+        write("outputs: metrics.json and .csv, curve.png", run_folders.save_metrics, out, run.cfg, run.metrics)
+        write("outputs: metrics.json and .csv, curve.png", run_folders.save_curve, out, run.cfg, run.metrics)
+    try:
+        t0 = time.perf_counter()
+        demo_data = rlil.load_demos(cfg, workdir / "cache")
+        run = rlil.algorithm1(cfg, demo_data, log=lambda message: None, on_iteration=on_iteration)
+        write("outputs: rollout.gif (its evaluation included)", run_folders.save_rollouts, out, run)
+        total = time.perf_counter() - t0
+    finally:
+        for m, name, fn in saved:
+            setattr(m, name, fn)
+    return timer.seconds, timer.calls, total
+
+
+def phase_rows(threads: int) -> list[dict]:
+    """PHASE_COLUMNS rows of the main command (train.py's defaults, seed 0) at `threads` torch threads;
+    the last row, "the whole run", is its wall time, "other" what no phase covers."""
+    import tempfile
+    cfg = rlil.validate_config(rlil.Config(train=("leg_none_wheel",), demos=("hexapod", "car"), threads=threads))
+    with tempfile.TemporaryDirectory(prefix="phases-") as tmp:
+        seconds, calls, total = profile_phases(cfg, Path(tmp))
+    cpu = torch.backends.cpu.get_cpu_capability()
+    order = [(phase, part) for _, _, phase, part in PHASES] + [k for k in seconds if k[0].startswith("outputs")]
+    rows = [{"threads": threads, "phase": phase, "part": part, "calls": calls[phase, part],
+             "seconds": seconds[phase, part], "cpu_capability": cpu}
+            for phase, part in dict.fromkeys(order) if (phase, part) in seconds]
+    covered = sum(r["seconds"] for r in rows if not r["part"])
+    rows.append({"threads": threads, "phase": "other (between phases)", "part": "", "calls": 1,
+                 "seconds": total - covered, "cpu_capability": cpu})
+    rows.append({"threads": threads, "phase": "the whole run", "part": "", "calls": 1, "seconds": total,
+                 "cpu_capability": cpu})
+    return rows
+
+
+def print_phases(threads: int, csv_path: Path) -> None:
+    """Profile the main command and write its rows into `csv_path` (rows of other thread counts kept)."""
+    import csv
+    rows = phase_rows(threads)
+    kept = []
+    if csv_path.exists():
+        with open(csv_path, newline="") as f:
+            kept = [r for r in csv.DictReader(f) if int(r["threads"]) != threads]
+
+    def write(p):
+        with open(p, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=PHASE_COLUMNS)
+            w.writeheader()
+            w.writerows(kept + rows)
+    atomic_write(csv_path, write)
+    total = rows[-1]["seconds"]
+    for r in rows:
+        print(f"{r['seconds']:8.1f} s {100 * r['seconds'] / total:5.1f} %  {r['phase']}"
+              + (f": {r['part']}" if r["part"] else "") + f" ({r['calls']} calls)")
+    print(f"wrote {csv_path} (python experiments/tables.py makes results/phase_profile.md from it)")
+
+
+# ----------------------------------------------------------------------------
 # Entry point
 # ----------------------------------------------------------------------------
 def main(argv=None) -> int:
@@ -315,6 +438,8 @@ def main(argv=None) -> int:
     parser.add_argument("--ppo", action="store_true", help="time one PPO iteration (on --design)")
     parser.add_argument("--profile", choices=PROFILE_STEPS,
                         help="print torch.profiler's operator table of 3 default-run steps of this kind")
+    parser.add_argument("--phases", action="store_true", help="profile the main command phase by phase (a whole "
+                        "run, about 3 minutes) into results/phase_profile.csv, rows of other --threads kept")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
     parser.add_argument("--design", default="hexapod", help="the design of the PPO bench (default hexapod)")
     args = parser.parse_args(argv)
@@ -324,6 +449,11 @@ def main(argv=None) -> int:
         sim2d.parse_design(args.design)
     except ValueError as e:
         parser.error(str(e))
+    if args.phases:
+        torch.set_num_threads(args.threads)
+        print(provenance(args.threads))
+        print_phases(args.threads, Path(__file__).resolve().parents[1] / "results" / "phase_profile.csv")
+        return 0
     everything = not (args.world or args.networks or args.ppo or args.profile)
     torch.set_num_threads(args.threads)
     print(provenance(args.threads))

@@ -45,6 +45,7 @@ from sim2d import (FLIP_PITCH, NAMED_DESIGNS, PHYSICS_SUBSTEPS, STEPS_PER_ACTION
 # ----------------------------------------------------------------------------
 CHECK_SEED = 11        # seed of check_physics: its random codes, starts and actions
 CHECK_KINDS = ("bang-bang", "spline")
+MAX_ROBOTS, MAX_STEPS = 256, 10_000      # the most --robots and --steps the command takes
 
 
 def check_codes(designs=tuple(NAMED_DESIGNS), random_codes: int = 20, seed: int = CHECK_SEED) -> list[str]:
@@ -170,12 +171,18 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=int, default=200, help="control steps per run")
     parser.add_argument("--seed", type=int, default=CHECK_SEED, help="seed of the codes, starts and actions")
     args = parser.parse_args(argv)
-    if args.random_codes < 0 or args.robots < 1 or args.steps < 1:
-        parser.error("--random-codes must be >= 0, --robots and --steps >= 1")
+    if not 1 <= args.robots <= MAX_ROBOTS or not 1 <= args.steps <= MAX_STEPS:
+        parser.error(f"--robots takes 1 to {MAX_ROBOTS} and --steps 1 to {MAX_STEPS}, got {args.robots} and {args.steps}")
+    if not 0 <= args.seed < 2 ** 63:
+        parser.error(f"--seed takes 0 to 2^63 - 1, got {args.seed}")
     try:
         designs = [parse_design(d) for d in (args.design or NAMED_DESIGNS)]
     except ValueError as e:
         parser.error(str(e))
+    others = len(all_designs()) - len(set(designs))
+    if not 0 <= args.random_codes <= others:
+        parser.error(f"--random-codes takes 0 to {others} (the {len(all_designs())} codes less the "
+                     f"{len(set(designs))} given), got {args.random_codes}")
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     result = check_physics(designs, args.random_codes, args.robots, args.steps, seed=args.seed)
