@@ -483,6 +483,25 @@ def launch_runs(runs: list[dict], last: int, jobs: int, log, what: str, launcher
             signal.signal(signal.SIGTERM, before)
 
 
+def checked_launch(runs: list[dict], last: int, out: Path, jobs: int, log, what: str, launcher: str,
+                   ray_address: str | None, collect: Path | None, accept_other_configs: bool) -> None:
+    """Everything a sweep checks before it writes (the run folders' configs, `out`, the Ray address),
+    then, unless `collect`, `launch_runs`; a refusal leaves no `out` it made behind."""
+    check_reuse(runs, accept_other_configs, collect is not None, log)
+    check_writable(out)
+    if collect is None and launcher == "ray":
+        check_ray(ray_address)
+    made = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    if collect is None:
+        try:
+            launch_runs(runs, last, jobs, log, what, launcher, ray_address)
+        except UsageError:
+            if made and not any(out.iterdir()):
+                out.rmdir()                                # nothing left behind
+            raise
+
+
 def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panels: str = "abcd",
             launcher: str = "local", ray_address: str | None = None, collect: Path | None = None,
             accept_other_configs: bool = False) -> list[str]:
@@ -501,19 +520,7 @@ def figure3(out: Path, base: rlil.Config, seeds: int, jobs: int, log=None, panel
     """
     log = log or rlil.ProgressLog()
     runs = figure3_runs(collect or out, base, seeds, jobs, panels)
-    check_reuse(runs, accept_other_configs, collect is not None, log)
-    check_writable(out)
-    if collect is None and launcher == "ray":
-        check_ray(ray_address)
-    made = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    if collect is None:
-        try:
-            launch_runs(runs, base.iters, jobs, log, "figure 3", launcher, ray_address)
-        except UsageError:
-            if made and not any(out.iterdir()):
-                out.rmdir()                                # nothing left behind
-            raise
+    checked_launch(runs, base.iters, out, jobs, log, "figure 3", launcher, ray_address, collect, accept_other_configs)
     problems = [f"({r['panel']}) {r['method']} seed {r['seed']}: {why}" for r in runs
                 if (why := run_problem(r, base.iters))]
     rows = figure3_rows(runs)
@@ -829,19 +836,7 @@ def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig,
     are missing, cannot be read, hold a null figure or did not finish."""
     log = log or rlil.ProgressLog()
     runs = sample_efficiency_runs(collect or out, base, base_ppo, seeds, jobs)
-    check_reuse(runs, accept_other_configs, collect is not None, log)
-    check_writable(out)
-    if collect is None and launcher == "ray":
-        check_ray(ray_address)
-    made = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    if collect is None:
-        try:
-            launch_runs(runs, 0, jobs, log, "sample efficiency", launcher, ray_address)
-        except UsageError:
-            if made and not any(out.iterdir()):
-                out.rmdir()                                # nothing left behind
-            raise
+    checked_launch(runs, 0, out, jobs, log, "sample efficiency", launcher, ray_address, collect, accept_other_configs)
     problems = [f"{r['train']} {r['method']} seed {r['seed']}: {why}" for r in runs
                 if (why := run_problem(r, r["last"], *SAMPLE_FIGURES))]
     rows = sample_efficiency_rows(runs)

@@ -126,18 +126,15 @@ MUTATIONS = [
      "        stop_processes(procs, signum, grace, hurry)\n", "        pass\n",
      "tests/test_sweep_faults.py::test_sigterm_stops_the_sweeps_runs_and_says_how_to_continue"),
     ("sweeps: --ray-address not tried before ray.init", "experiments/sweeps.py",
-     "        check_ray(ray_address)\n    made = not out.exists()\n    out.mkdir(parents=True, exist_ok=True)\n"
-     "    if collect is None:\n        try:\n            launch_runs(runs, base.iters",
-     "        pass\n    made = not out.exists()\n    out.mkdir(parents=True, exist_ok=True)\n"
-     "    if collect is None:\n        try:\n            launch_runs(runs, base.iters",
+     "        check_ray(ray_address)\n    made = not out.exists()\n", "        pass\n    made = not out.exists()\n",
      "tests/test_sweep_faults.py::test_an_unreachable_ray_address_fails_in_one_line_within_15_s"),
     ("sweeps: --out not checked before the sweep", "experiments/sweeps.py",
      "    check_writable(out)\n    if collect is None and launcher == \"ray\":\n        check_ray(ray_address)\n"
      "    made = not out.exists()\n    out.mkdir(parents=True, exist_ok=True)\n    if collect is None:\n"
-     "        try:\n            launch_runs(runs, base.iters",
+     "        try:\n            launch_runs(runs, last",
      "    if collect is None and launcher == \"ray\":\n        check_ray(ray_address)\n"
      "    made = not out.exists()\n    out.mkdir(parents=True, exist_ok=True)\n    if collect is None:\n"
-     "        try:\n            launch_runs(runs, base.iters",
+     "        try:\n            launch_runs(runs, last",
      "tests/test_sweep_faults.py::test_an_output_folder_that_cannot_be_written_is_refused_before_any_work"),
     ("tables: a CSV row of too few cells read as it is", "experiments/tables.py",
      "            if None in row or None in row.values():\n", "            if False:\n",
