@@ -42,10 +42,10 @@ import modular_rlil_minimal as rlil
 import ppo_minimal as ppo_lib
 import sim2d
 from experiments import sweeps, transfer
-from experiments.run_folders import (UsageError, WriteError, all_flags, check_output_file, claim_run_dir,
-                                     config_flags, config_from_dict, is_ppo, load_checkpoint, load_policy, ppo_flags,
-                                     prepare_run_dir, restore_run, run_name, save_checkpoint, save_curve,
-                                     save_metrics, save_rollouts, write_or_say)
+from experiments.run_folders import (Interrupted, UsageError, WriteError, all_flags, check_output_file,
+                                     claim_run_dir, config_flags, config_from_dict, is_ppo, load_checkpoint,
+                                     load_policy, ppo_flags, prepare_run_dir, restore_run, run_name, save_checkpoint,
+                                     save_curve, save_metrics, save_rollouts, write_or_say)
 from gnn import GNNConfig
 
 
@@ -53,14 +53,6 @@ from gnn import GNNConfig
 # Ctrl-C and SIGTERM
 # ----------------------------------------------------------------------------
 PENDING_SIGNAL = []   # a Ctrl-C or SIGTERM that arrived inside pymunk, raised at the next log line or checkpoint
-
-
-class Interrupted(KeyboardInterrupt):
-    """Ctrl-C (SIGINT) or SIGTERM (what a cluster scheduler sends at a time limit), handled alike."""
-
-    def __init__(self, signum: int = signal.SIGINT):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
 
 
 def on_signal(signum, frame) -> None:
@@ -365,7 +357,7 @@ def sweep(args) -> int:
                                                 ray_address=args.ray_address, collect=collect,
                                                 accept_other_configs=args.accept_other_configs)
     except KeyboardInterrupt as e:                # SIGTERM or Ctrl-C (main's on_signal, launch_runs)
-        e = e if isinstance(e, sweeps.Interrupted) else sweeps.Interrupted(getattr(e, "signum", signal.SIGINT))
+        e = e if isinstance(e, Interrupted) else Interrupted(getattr(e, "signum", signal.SIGINT))
         print(sweeps.interrupted_line(e, out, command), file=sys.stderr)
         return 128 + e.signum
     return 1 if problems else 0

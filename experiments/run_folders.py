@@ -16,6 +16,7 @@ import fcntl
 import json
 import os
 import shutil
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -34,6 +35,15 @@ OUTPUTS = ("metrics.json", "metrics.csv", "curve.png", "policy.pt", "checkpoint.
 
 class UsageError(Exception):
     """Bad input: reported as one line with exit status 2."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) or SIGTERM (what a cluster scheduler sends at a time limit), handled alike: a
+    run keeps its finished iterations; a sweep's runs stopped with `finished` of `total` finished."""
+
+    def __init__(self, signum: int = signal.SIGINT, finished: int | None = None, total: int | None = None):
+        super().__init__(signal.Signals(signum).name)
+        self.signum, self.finished, self.total = signum, finished, total
 
 
 # ----------------------------------------------------------------------------

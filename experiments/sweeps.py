@@ -45,8 +45,8 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import ppo_minimal as ppo_lib                                                                 # noqa: E402
 import sim2d                                                                                  # noqa: E402
-from experiments.run_folders import (COLOURS, UsageError, config_args, config_from_dict, is_ppo,  # noqa: E402
-                                     run_name)
+from experiments.run_folders import (COLOURS, Interrupted, UsageError, config_args,  # noqa: E402
+                                     config_from_dict, is_ppo, run_name)
 from experiments.stats import (area_under_curve, bootstrap_ci, interval, iterations_to_converge)  # noqa: E402
 from sim2d import atomic_write                                                                # noqa: E402
 
@@ -318,15 +318,6 @@ def stop_runs(signum: int, grace: float = STOP_GRACE_S) -> None:
     finally:
         for s, handler in before.items():
             signal.signal(s, handler)
-
-
-class Interrupted(KeyboardInterrupt):
-    """A sweep stopped by SIGTERM or SIGINT (Ctrl-C), handled alike; raised by launch_runs once its
-    runs stopped, `finished` of `total` runs having finished."""
-
-    def __init__(self, signum: int, finished: int | None = None, total: int | None = None):
-        super().__init__(signal.Signals(signum).name)
-        self.signum, self.finished, self.total = signum, finished, total
 
 
 def raise_interrupted(signum, frame) -> None:
