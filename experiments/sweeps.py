@@ -233,12 +233,6 @@ def last_iteration(run_dir: Path) -> int:
     return saved["iterations"][-1]["iteration"] if saved else -1
 
 
-def finished_iterations(run_dir: Path) -> int:
-    """Iterations after iteration 0 in a run's metrics.json; -1 when it has none (or it cannot be read)."""
-    saved, _ = read_metrics(run_dir)
-    return len(saved["iterations"]) - 1 if saved else -1
-
-
 # ----------------------------------------------------------------------------
 # Launchers: local processes, Ray tasks, or a plan for any scheduler
 # ----------------------------------------------------------------------------
