@@ -748,14 +748,15 @@ def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
              [r["distance_m"] for r in table[i]]) for i in sorted(table)]
 
 
-def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = ()) -> str:
+def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = (),
+                                designs=tuple(SAMPLE_EFFICIENCY), methods=SAMPLE_METHODS) -> str:
     """Markdown: per design and method, the simulator steps and seconds at which the mean over seeds
     first reaches each of THRESHOLDS_M in 200 steps, and where each ends."""
     head = " | ".join(f"{t:g} m: steps | {t:g} m: seconds" for t in THRESHOLDS_M)
     lines = [f"| design | method | seeds | {head} | final steps | final seconds | final mean (m) | final min-max (m) |",
              "|---|---|---|" + "---|" * (2 * len(THRESHOLDS_M) + 4)]
-    for design in SAMPLE_EFFICIENCY:
-        for method in SAMPLE_METHODS:
+    for design in designs:
+        for method in methods:
             curve = mean_curve(rows, design, method)
             if not curve:
                 lines.append(f"| {design} | {method} | 0 of {seeds} |" + " |" * (2 * len(THRESHOLDS_M) + 4))

@@ -366,6 +366,38 @@ def run_steps(path: Path) -> list[int]:
     return steps
 
 
+# The class run's budget screen (issue #33): leg_none_wheel RL+IL at cut budgets, in order of the runs
+BUDGET_VARIANTS = {
+    "defaults": "none (1,000 cloning steps; 1,500 and 500 model steps; K = 120 every iteration)",
+    "A": "300 cloning steps, 1,000 and 250 model steps, K = 60 of 128 robots (the same robot-steps)",
+    "B": "300 cloning steps, 1,000 and 250 model steps, K = 60",
+    "C": "300 cloning steps, 1,000 and 250 model steps, K = 120 at iteration 1 and 60 after",
+    "C_bc1000": "1,000 and 250 model steps, K = 120 at iteration 1 and 60 after"}
+
+
+def budget_screen_table(runs: Path) -> str:
+    """Markdown of the budget screen's committed runs (runs/<variant>/<run>/metrics.json): per
+    variant the seeds, the area under the curve (mean m over iterations 1-5) with its 95 %
+    bootstrap CI, each of seeds 5 and 6, the lowest distance from iteration 2 on, and the mean
+    seconds per run."""
+    lines = ["| variant | differs from the defaults | seeds | area under the curve (m) [95 % CI] | seeds 5, 6 (m) "
+             "| lowest from iteration 2 (m) | s per run |", "|---|---|---|---|---|---|---|"]
+    for variant, what in BUDGET_VARIANTS.items():
+        curves = {}
+        for path in sorted((runs / variant).glob("*-seed*/metrics.json")):
+            rows = json.loads(path.read_text())["iterations"]
+            curves[int(path.parent.name.rsplit("seed", 1)[1])] = rows
+        if not curves:
+            continue
+        auc = {s: float(np.mean([r["distance_m"] for r in rows[1:]])) for s, rows in curves.items()}
+        low = min(r["distance_m"] for rows in curves.values() for r in rows[2:])
+        seconds = np.mean([sum(r["seconds"] for r in rows) for rows in curves.values()])
+        five_six = ", ".join(f"{auc[s]:.2f}" if s in auc else "-" for s in (5, 6))
+        lines.append(f"| {variant} | {what} | {len(curves)} | {np.mean(list(auc.values())):.2f} "
+                     f"{interval(bootstrap_ci(list(auc.values())))} | {five_six} | {low:.2f} | {seconds:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def generalist_table(root: Path) -> str:
     """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
     iteration where the four single-design RL+IL runs together have used at least the generalist's
@@ -434,6 +466,15 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     with made_from(results / "sample_efficiency.csv"):
         rows = read_rows_csv(results / "sample_efficiency.csv")
         tables[results / "sample_efficiency.md"] = summarize_sample_efficiency(rows, len({r["seed"] for r in rows}))
+    if (results / "budget_screen_runs").is_dir():
+        with made_from(results / "budget_screen_runs"):
+            tables[results / "budget_screen.md"] = budget_screen_table(results / "budget_screen_runs")
+    if (results / "side_by_side.csv").exists():          # experiments/side_by_side.py
+        with made_from(results / "side_by_side.csv"):
+            rows = read_rows_csv(results / "side_by_side.csv")
+            tables[results / "side_by_side.md"] = summarize_sample_efficiency(
+                rows, len({r["seed"] for r in rows}), designs=tuple(dict.fromkeys(r["train"] for r in rows)),
+                methods=("RL+IL", "PPO"))
     for name, variants, baseline in (("stability_screen", SCREEN, "paper"), ("stability_confirm", CONFIRM, "paper"),
                                      ("stability_screen_defaults", SCREEN_OVER_DEFAULTS, DEFAULT)):
         if (results / f"{name}.csv").exists():

@@ -363,3 +363,14 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
     # PPO+IL: 0.5, 4.5, 8.5 m
     assert "| hexapod | PPO+IL | 2 of 2 | 3,000 | 30 | not reached |  | not reached |  | 3,000 | 30 | 8.50 | 8.00 - 9.00 |" in table
     assert (tmp_path / "sample_efficiency.png").stat().st_size > 10_000
+
+
+def test_the_side_by_side_table_lists_only_the_designs_and_methods_asked():
+    """experiments/side_by_side.py's table (tables.py): RL+IL and PPO of one design, no empty rows."""
+    rows = [{"train": "leg_none_wheel", "method": m, "seed": s, "iteration": i, "sim_steps": 1000 * (i + 1),
+             "seconds": 10.0 * (i + 1), "distance_m": 6.0 * i + (1.0 if m == "PPO" else 0.0)}
+            for m in ("RL+IL", "PPO") for s in range(2) for i in range(3)]
+    table = sweeps.summarize_sample_efficiency(rows, 2, designs=("leg_none_wheel",), methods=("RL+IL", "PPO"))
+    assert len(table.strip().splitlines()) == 4 and "hexapod" not in table
+    assert "| leg_none_wheel | RL+IL | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
+    assert "| leg_none_wheel | PPO | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
