@@ -29,7 +29,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 
 import modular_rlil_minimal as rlil                                               # noqa: E402
 import sim2d                                                                      # noqa: E402
-from experiments import transfer                                                  # noqa: E402
+from experiments import gradient_check, transfer                                  # noqa: E402
 from experiments.run_folders import UsageError                                    # noqa: E402
 from experiments.stats import (area_under_curve, bootstrap_ci, bootstrap_diff_ci, interval,  # noqa: E402
                                probability_of_improvement, probability_of_improvement_ci, verdict)
@@ -245,7 +245,7 @@ ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md
     "figure3": ("figure3_iterations", ("RL+IL", "RL")),
     "class_demo": ("class_demo", ("RL",)),                       # the class demo command has no demos
 }
-TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability"}
+TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability", "design"}
 BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
 
 
@@ -469,6 +469,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "budget_screen_runs").is_dir():
         with made_from(results / "budget_screen_runs"):
             tables[results / "budget_screen.md"] = budget_screen_table(results / "budget_screen_runs")
+    probes = sorted(results.glob("gradient_check_*.csv"))      # experiments/gradient_check.py
+    if probes:
+        with made_from(" and ".join(map(str, probes))):
+            tables[results / "gradient_check.md"] = gradient_check.summary(
+                [r for path in probes for r in read_rows_csv(path)])
     if (results / "side_by_side.csv").exists():          # experiments/side_by_side.py
         with made_from(results / "side_by_side.csv"):
             rows = read_rows_csv(results / "side_by_side.csv")

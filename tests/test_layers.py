@@ -23,6 +23,7 @@ LAYERS = [
     ["modular_rlil_minimal", "ppo_minimal"],
     ["experiments.stats", "experiments.run_folders"],
     ["experiments.sweeps", "experiments.transfer", "experiments.tables", "experiments.diagnosis",
+     "experiments.gradient_check", "experiments.side_by_side", "experiments.model_replay",
      "tools.bench", "tools.check_physics", "tools.mutations"],
     ["train"],
 ]
