@@ -44,10 +44,11 @@ from experiments.run_folders import UsageError, check_output_file               
 COLUMNS = ("design", "seed", "after", "horizon", "probe", "real_T", "real_episode", "model_T")
 
 
-def starting_point(cfg: rlil.Config, after: int):
+def starting_point(cfg: rlil.Config, after: int, demo_data: dict | None = None):
     """Plain RL's policy, model and T_train at the start of iteration after + 1's policy phase:
-    Algorithm 1 run for `after` iterations (0: line 2 only), then line 5 on all the data so far."""
-    run = rlil.algorithm1(dataclasses.replace(cfg, iters=after), {}, log=lambda m: None)
+    Algorithm 1 run for `after` iterations (0: line 2 only), then line 5 on all the data so far
+    (with `demo_data`, RL+IL's: line 1 first, and the clone's roll-outs in T_train)."""
+    run = rlil.algorithm1(dataclasses.replace(cfg, iters=after), demo_data or {}, log=lambda m: None)
     rlil.train_model(run.model, run.data, cfg, run.rng, first=(after == 0))
     return run.policy, run.model, run.data[sim2d.parse_design(cfg.train[0])], run.rng
 

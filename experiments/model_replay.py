@@ -11,6 +11,7 @@ much less cannot, whatever the policy optimisation does.
 
     python experiments/model_replay.py --design hexapod --after 0 4 --seeds 0 1 2
     python experiments/model_replay.py --design leg_none_wheel --after 0
+    python experiments/model_replay.py --design hexapod --with-demos     # RL+IL's model, the clone's data in it
 """
 from __future__ import annotations
 
@@ -54,6 +55,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
     parser.add_argument("--episodes", type=int, default=16, help="demonstrations replayed (default 16)")
     parser.add_argument("--preset", default="default", help="Algorithm 1's budget: default or tiny")
+    parser.add_argument("--with-demos", action="store_true",
+                        help="RL+IL's model instead, with the design's own demos: its data holds the clone's "
+                             "roll-outs (--clone-data), so it has seen gait-like states")
     args = parser.parse_args(argv)
     try:
         design = sim2d.parse_design(args.design)
@@ -69,8 +73,8 @@ def main(argv=None) -> int:
           f"| model, {base.episode_steps} steps (m) |\n|---|---|---|---|---|---|---|")
     for seed in args.seeds:
         for after in args.after:
-            cfg = dataclasses.replace(base, train=(design,), demos=(), seed=seed)
-            _, model, _, _ = starting_point(cfg, after)
+            cfg = dataclasses.replace(base, train=(design,), demos=(design,) if args.with_demos else (), seed=seed)
+            _, model, _, _ = starting_point(cfg, after, rlil.load_demos(cfg) if args.with_demos else None)
             r = replay(model, demo, cfg.horizon)
             print(f"| {seed} | {after} | {cfg.horizon} | {r['sim_T']:.2f} | {r['model_T']:.2f} | "
                   f"{r['sim_episode']:.2f} | {r['model_episode']:.2f} |", flush=True)
