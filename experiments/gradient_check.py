@@ -26,7 +26,6 @@ above 0, real_T at or below 0) is the model's error steering the policy.
 from __future__ import annotations
 
 import copy
-import csv
 import dataclasses
 import sys
 from pathlib import Path
@@ -40,8 +39,9 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import sim2d                                                                                 # noqa: E402
 from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
-COLUMNS = ("design", "seed", "after", "horizon", "probe", "real_T", "real_episode", "model_T")
+COLUMNS = ["design", "seed", "after", "horizon", "probe", "real_T", "real_episode", "model_T"]
 
 
 def starting_point(cfg: rlil.Config, after: int, demo_data: dict | None = None):
@@ -161,12 +161,7 @@ def main(argv=None) -> int:
                 print(f"{design} seed {seed} after {after}: done", flush=True)
     print(summary(rows))
     if args.out:
-        def write(path):
-            with open(path, "w", newline="") as f:
-                w = csv.DictWriter(f, COLUMNS)
-                w.writeheader()
-                w.writerows(rows)
-        sim2d.atomic_write(args.out, write)
+        write_rows_csv(args.out, COLUMNS, rows)
         print(f"wrote {args.out}")
     return 0
 

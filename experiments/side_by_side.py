@@ -37,18 +37,26 @@ def commands(design: str, seed: int, out: Path) -> dict:
             "PPO": (ppo_dir, ["--method", "ppo", "--train", design, "--seed", str(seed), "--out", str(ppo_dir)])}
 
 
-def run_pair(pair: dict, seconds: float, log=print) -> None:
-    """Start both runs at once; PPO is stopped (SIGTERM, as Ctrl-C would) after `seconds`."""
-    procs = {m: subprocess.Popen([sys.executable, str(ROOT / "train.py"), *args, "--force"],
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+def run_pair(pair: dict, seconds: float) -> None:
+    """Start both runs at once; PPO is stopped (SIGTERM, as Ctrl-C would) after `seconds`.  If
+    this process is stopped first, both runs are stopped with it."""
+    procs = {m: subprocess.Popen([sys.executable, str(ROOT / "train.py"), *args], stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE if m == "RL+IL" else subprocess.DEVNULL, text=True)
              for m, (_, args) in pair.items()}
     try:
-        procs["PPO"].wait(timeout=seconds)
-    except subprocess.TimeoutExpired:
-        procs["PPO"].send_signal(signal.SIGTERM)
-        procs["PPO"].wait()
-    if procs["RL+IL"].wait() != 0:
-        raise UsageError(f"the RL+IL run failed: {procs['RL+IL'].stderr.read().strip().splitlines()[-1:]}")
+        try:
+            procs["PPO"].wait(timeout=seconds)
+        except subprocess.TimeoutExpired:
+            procs["PPO"].send_signal(signal.SIGTERM)
+            procs["PPO"].wait()
+        _, err = procs["RL+IL"].communicate()
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+                proc.wait()
+    if procs["RL+IL"].returncode != 0:
+        raise UsageError(f"the RL+IL run failed: {(err.strip().splitlines() or ['no message'])[-1]}")
 
 
 def main(argv=None) -> int:
@@ -64,9 +72,12 @@ def main(argv=None) -> int:
         parser.error("--seeds takes 1 to 100 and --seconds 1 to 36000")
     try:
         check_output_file(args.csv, ".csv", "--csv", args.force)
+        pairs = [commands(args.design, seed, args.out) for seed in range(args.seeds)]
+        taken = [d for pair in pairs for d, _ in pair.values() if d.exists()]
+        if taken:                                           # never over a run the user has
+            raise UsageError(f"{taken[0]} exists: name another --out (a run folder is never replaced here)")
         runs = []
-        for seed in range(args.seeds):
-            pair = commands(args.design, seed, args.out)
+        for seed, pair in enumerate(pairs):
             print(f"seed {seed}: RL+IL and PPO side by side", flush=True)
             run_pair(pair, args.seconds)
             runs += [{"train": args.design, "method": m, "seed": seed, "dir": d} for m, (d, _) in pair.items()]

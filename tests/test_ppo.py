@@ -374,3 +374,15 @@ def test_the_side_by_side_table_lists_only_the_designs_and_methods_asked():
     assert len(table.strip().splitlines()) == 4 and "hexapod" not in table
     assert "| leg_none_wheel | RL+IL | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
     assert "| leg_none_wheel | PPO | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
+
+
+def test_side_by_side_refuses_an_existing_run_folder_before_it_runs_anything(tmp_path, monkeypatch, capsys):
+    """experiments/side_by_side.py never runs over a run the user has: one line, exit 2, nothing started."""
+    from experiments import side_by_side
+    (tmp_path / "leg_none_wheel-ppo-seed1").mkdir()
+    monkeypatch.setattr(side_by_side, "run_pair", lambda *a: pytest.fail("a run was started"))
+    with pytest.raises(SystemExit) as e:
+        side_by_side.main(["--seeds", "2", "--out", str(tmp_path), "--csv", str(tmp_path / "t.csv")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and "leg_none_wheel-ppo-seed1 exists: name another --out" in err[-1]
+    assert not (tmp_path / "t.csv").exists()
