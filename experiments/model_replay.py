@@ -12,6 +12,7 @@ much less cannot, whatever the policy optimisation does.
     python experiments/model_replay.py --design hexapod --after 0 4 --seeds 0 1 2
     python experiments/model_replay.py --design leg_none_wheel --after 0
     python experiments/model_replay.py --design hexapod --with-demos     # RL+IL's model, the clone's data in it
+    python experiments/model_replay.py --design hexapod --set random_knots=34   # faster random motions
 """
 from __future__ import annotations
 
@@ -47,6 +48,22 @@ def replay(model, demo: demo_lib.DemoData, horizon: int) -> dict:
             "sim_episode": float(true[:, steps].mean()), "model_episode": float((x[steps] - x[0]).mean())}
 
 
+def with_settings(cfg: rlil.Config, settings: list[str]) -> rlil.Config:
+    """cfg with FIELD=VALUE settings applied (numbers and on/off fields); a ValueError naming a
+    setting that is not one."""
+    kinds = {f.name: type(getattr(cfg, f.name)) for f in dataclasses.fields(cfg)}
+    changes = {}
+    for setting in settings:
+        name, _, value = setting.partition("=")
+        if kinds.get(name) not in (int, float, bool) or not value:
+            raise ValueError(f"--set {setting}: expected FIELD=VALUE with a numeric or on/off Config field")
+        try:
+            changes[name] = (value in ("1", "on", "true")) if kinds[name] is bool else kinds[name](value)
+        except ValueError:
+            raise ValueError(f"--set {setting}: {name} takes a {kinds[name].__name__}") from None
+    return dataclasses.replace(cfg, **changes)
+
+
 def main(argv=None) -> int:
     parser = sim2d.CliParser(description=__doc__.split("\n")[0])
     parser.add_argument("--design", default="hexapod", help="a design with a demonstrator (default hexapod)")
@@ -58,11 +75,14 @@ def main(argv=None) -> int:
     parser.add_argument("--with-demos", action="store_true",
                         help="RL+IL's model instead, with the design's own demos: its data holds the clone's "
                              "roll-outs (--clone-data), so it has seen gait-like states")
+    parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE",
+                        help="Config fields to change from the preset, e.g. random_knots=34 random_episodes=128")
     args = parser.parse_args(argv)
     try:
         design = sim2d.parse_design(args.design)
         demo_lib.check_demonstrable(sim2d.design_graph(design))
         base = rlil.preset(args.preset)
+        base = rlil.validate_config(with_settings(base, args.set))
     except ValueError as e:
         parser.error(str(e))
     if any(not 0 <= n <= 50 for n in args.after) or not 1 <= args.episodes <= 256:
