@@ -73,8 +73,6 @@ class Config:
     """control steps per collected episode (paper: 100)"""
     random_action_std: float = 1.0
     """std of the spline knots, in normalised action units; 0.5-1"""
-    random_knots: int = 10
-    """spline knots per DoF and episode (paper: 10 over 100 steps); more = faster random motions; 4-50"""
     # Lines 27-29: data from the policy
     policy_episodes: int = 16
     """policy episodes per design and iteration, once without and once with noise"""
@@ -213,7 +211,7 @@ def design_codes(field_name: str, designs) -> tuple[str, ...]:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
-    "buffer_size": 2, "random_knots": 2, "rounds": 0, "improvement_margin": 0.0}
+    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -273,7 +271,7 @@ def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) 
     episode (the paper's 100 steps: cfg.episode_steps)."""
     graph = sim2d.design_graph(design)
     actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
-                                          knots=cfg.random_knots, std=cfg.random_action_std)   # (E, T, A)
+                                          std=cfg.random_action_std)                  # (E, T, A)
     return Trajectories.from_episodes(sim2d.simulate(graph, lambda obs, s, t: actions[:, t], cfg.random_episodes,
                                                      cfg.episode_steps, seed=new_seed(rng)))
 

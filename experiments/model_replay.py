@@ -12,7 +12,7 @@ much less cannot, whatever the policy optimisation does.
     python experiments/model_replay.py --design hexapod --after 0 4 --seeds 0 1 2
     python experiments/model_replay.py --design leg_none_wheel --after 0
     python experiments/model_replay.py --design hexapod --with-demos     # RL+IL's model, the clone's data in it
-    python experiments/model_replay.py --design hexapod --set random_knots=34   # faster random motions
+    python experiments/model_replay.py --design hexapod --set random_episodes=128   # 4x line 2's data
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
                         help="RL+IL's model instead, with the design's own demos: its data holds the clone's "
                              "roll-outs (--clone-data), so it has seen gait-like states")
     parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE",
-                        help="Config fields to change from the preset, e.g. random_knots=34 random_episodes=128")
+                        help="Config fields to change from the preset, e.g. random_episodes=128 random_action_std=0.5")
     args = parser.parse_args(argv)
     try:
         design = sim2d.parse_design(args.design)

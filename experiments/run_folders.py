@@ -80,7 +80,7 @@ def config_to_dict(cfg) -> dict:
 # Settings that left the code (docs/ablations.md, Removed mechanisms) and the value at which the
 # code they switched on did nothing: a run written with that value is today's algorithm.
 REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
-                  "critic": False}
+                  "critic": False, "random_knots": 10}
 REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   # acted only with it on
 
 

@@ -259,16 +259,6 @@ def test_rlil_loss_is_the_equation():
     assert rlil.rlil_loss(torch.tensor(-2.0), torch.tensor(3.0), 0.5).item() == pytest.approx(-0.5)
 
 
-def test_random_rollouts_are_splines_with_cfg_random_knots():
-    """Line 2: the recorded actions are sim2d.random_spline_actions with cfg.random_knots knots
-    (the paper's 10 by default), drawn first from the run's generator."""
-    for knots in (10, 40):
-        cfg = tiny(random_episodes=4, episode_steps=40, random_knots=knots)
-        data = rlil.collect_random_rollouts("leg_none_wheel", cfg, np.random.default_rng(3))
-        expected = sim2d.random_spline_actions(np.random.default_rng(3), 4, 6, 40, knots=knots)
-        assert np.allclose(data.actions.numpy(), expected, atol=1e-6)
-
-
 def test_noisy_policy_rollouts_add_correlated_noise_to_the_clean_policy():
     """Line 28: half the episodes run the policy as it is, half with spline noise of std
     policy_noise_std.  With a policy whose mean action is 0, the clean half applies exactly 0
