@@ -398,6 +398,35 @@ def budget_screen_table(runs: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plain RL, 15 iterations (issue #34, step 4)
+    "defaults": "none: 32 random and 16 + 16 policy episodes (results/hexapod_rl_15_iterations_runs)",
+    "data16": "16x the data: 512 random, 256 + 256 policy episodes per iteration",
+    "data16_margin05": "data16, improvement margin 0.5",
+    "data16_nocheck": "data16, no improvement check (keep-better off)"}
+
+
+def plain_rl_budget_table(root: Path) -> str:
+    """Markdown of the plain-RL hexapod budget screen: per variant the seeds, each seed's distance
+    at iterations 5, 10 and 15, how many reach 10 m by iteration 15, the mean at 15 and the mean
+    seconds per run (two runs at a time)."""
+    folders = {v: root / "results" / ("hexapod_rl_15_iterations_runs" if v == "defaults" else f"plain_rl_budget_runs/{v}")
+               for v in PLAIN_RL_VARIANTS}
+    lines = ["| variant | differs from the defaults | seeds | distance at iterations 5, 10, 15 per seed (m) "
+             "| 10 m by 15 | mean at 15 (m) | s per run |", "|---|---|---|---|---|---|---|"]
+    for variant, what in PLAIN_RL_VARIANTS.items():
+        curves = {int(p.parent.name.rsplit("seed", 1)[1]): json.loads(p.read_text())["iterations"]
+                  for p in sorted(folders[variant].glob("*-seed*/metrics.json"))}
+        curves = {s: rows for s, rows in sorted(curves.items()) if len(rows) > 15}
+        if not curves:
+            continue
+        at = {s: [rows[i]["distance_m"] for i in (5, 10, 15)] for s, rows in curves.items()}
+        per_seed = "; ".join(f"{s}: " + ", ".join(f"{d:.2f}" for d in ds) for s, ds in at.items())
+        seconds = np.mean([sum(r["seconds"] for r in rows) for rows in curves.values()])
+        lines.append(f"| {variant} | {what} | {len(curves)} | {per_seed} | {sum(ds[2] >= 10 for ds in at.values())} of "
+                     f"{len(curves)} | {np.mean([ds[2] for ds in at.values()]):.2f} | {seconds:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def generalist_table(root: Path) -> str:
     """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
     iteration where the four single-design RL+IL runs together have used at least the generalist's
@@ -469,6 +498,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "budget_screen_runs").is_dir():
         with made_from(results / "budget_screen_runs"):
             tables[results / "budget_screen.md"] = budget_screen_table(results / "budget_screen_runs")
+    if (results / "plain_rl_budget_runs").is_dir():
+        with made_from(results / "plain_rl_budget_runs"):
+            tables[results / "plain_rl_budget.md"] = plain_rl_budget_table(root)
     probes = sorted(results.glob("gradient_check_*.csv"))      # experiments/gradient_check.py
     if probes:
         with made_from(" and ".join(map(str, probes))):
