@@ -275,7 +275,7 @@ def collect_episodes(policy: Memoryless, value: ModularValue, cfg: PPOConfig, rn
     actor = SamplingActor(policy, graph)
     run = sim2d.simulate(graph, actor, n=cfg.robots, steps=cfg.episode_steps, seed=new_seed(rng))
     s, s_next = run.states[:, :-1], run.states[:, 1:]                                   # (N, T, S) x 2
-    flip = np.abs(s_next[..., 2]) > sim2d.FLIP_PITCH                                    # (N, T)
+    flip = sim2d.is_flipped(s_next)                                                     # (N, T)
     ended = np.cumsum(flip, 1) > 0                                                      # at or after the flip
     valid = np.concatenate([np.ones((cfg.robots, 1), bool), ~ended[:, :-1]], 1)         # (N, T)
     obs = {k: torch.as_tensor(v, dtype=torch.float32) for k, v in run.obs.items()}      # (N, T, ...)
@@ -501,7 +501,7 @@ def ppo(cfg: PPOConfig, run: PPORun | None = None, log=print, on_evaluation=None
         if on_evaluation:
             on_evaluation(run)
         t0 = time.perf_counter()
-    policy, graph, n_iters = Memoryless(run.policy), sim2d.design_graph(cfg.train[0]), iterations(cfg)
+    policy, n_iters = Memoryless(run.policy), iterations(cfg)
     per_eval = max(1, round(cfg.eval_every / (cfg.robots * cfg.episode_steps)))
     train_distance = []
     for i in range(run.iteration + 1, n_iters + 1):                                     # PPO line 1

@@ -105,7 +105,7 @@ GROUND_THICKNESS = 100.0     # cm: the ground is a thick finite segment under y 
                              # 2 cm one lets fast feet tunnel through and hook underneath (26.8 cm
                              # deep at 1/60 s steps, 1.97 cm at 1/240 s)
 GROUND_X = (-5000.0, 20000.0)   # cm: 50 m behind to 200 m ahead of the start
-FLIP_PITCH = math.pi / 2     # rad: |pitch| beyond this counts as flipped
+FLIP_PITCH = math.pi / 2     # rad: |pitch| beyond this counts as flipped (`flipped`)
 ROBOT_CAT, GROUND_CAT = 0b01, 0b10   # collision categories: limbs touch only ground
 
 # Sensor noise of the observation function O (standard deviations).
@@ -311,6 +311,12 @@ def reward(s, a, s_next, graph: DesignGraph):
     else:
         pose_cost = 0.0
     return progress - pitch_cost - effort_cost - pose_cost
+
+
+def is_flipped(s) -> np.ndarray:
+    """(...,) bool: the robot in state s (..., S) has flipped, |pitch| > FLIP_PITCH; the World's
+    `terminated`, which ends an episode for PPO and the Gymnasium env."""
+    return np.abs(s[..., 2]) > FLIP_PITCH
 
 
 # ----------------------------------------------------------------------------
@@ -657,7 +663,7 @@ class World:
         s, s_next = self.state, self.read_state()
         r = reward(s, actions, s_next, self.graph)       # numpy here: a third of torch's cost on tiny arrays
         self.state, self.t = s_next, self.t + 1
-        flipped = np.abs(s_next[:, 2]) > FLIP_PITCH
+        flipped = is_flipped(s_next)
         self.terminated |= flipped
         truncated = np.full(self.n, self.t >= self.max_steps)
         info = {"state": s_next, "flipped": flipped}
