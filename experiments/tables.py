@@ -402,7 +402,8 @@ PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plai
     "defaults": "none: 32 random and 16 + 16 policy episodes (results/hexapod_rl_15_iterations_runs)",
     "data16": "16x the data: 512 random, 256 + 256 policy episodes per iteration",
     "data16_margin05": "data16, improvement margin 0.5",
-    "data16_nocheck": "data16, no improvement check (keep-better off)"}
+    "data16_nocheck": "data16, no improvement check (keep-better off)",
+    "data16_k480": "data16, K = 480 policy steps per iteration (4x)"}
 
 
 def plain_rl_budget_table(root: Path) -> str:
