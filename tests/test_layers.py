@@ -7,6 +7,7 @@
     shared       experiments/stats, experiments/run_folders
     experiments  experiments/sweeps, experiments/transfer, experiments/tables, tools/*
     command      train
+    lesson       lesson/grade, lesson/lesson, lesson/exercises/* (the class: they import the stages; nothing imports them)
 
 Imports are read from the source (ast), function-level ones included, so a
 stage file that forwards to a tool inside a function is caught too.  Modules of
@@ -28,9 +29,12 @@ LAYERS = [
      "experiments.gradient_check", "experiments.side_by_side", "experiments.model_replay",
      "tools.bench", "tools.check_physics", "tools.mutations"],
     ["train"],
+    ["lesson.grade", "lesson.lesson", "lesson.exercises.ex1_reward", "lesson.exercises.ex2_message_passing",
+     "lesson.exercises.ex3_rl_loss", "lesson.exercises.ex4_il_loss", "lesson.exercises.ex5_adaptive_lr",
+     "lesson.exercises.ex6_experiment"],
 ]
 LAYER = {module: k for k, modules in enumerate(LAYERS) for module in modules}
-PACKAGES = {"experiments", "interfaces", "tools"}       # folders of modules, each a package
+PACKAGES = {"experiments", "interfaces", "tools", "lesson", "lesson/exercises"}   # folders of modules, each a package
 
 
 def module_name(path: Path, root: Path) -> str:
@@ -104,7 +108,7 @@ def test_the_check_fails_on_a_stage_file_that_imports_a_tool(tmp_path, stage, li
     """The same check on a copy with one import added that points up (the last also closes a circle)."""
     for p in project_modules(ROOT):
         dest = tmp_path / p.relative_to(ROOT)
-        dest.parent.mkdir(exist_ok=True)
+        dest.parent.mkdir(parents=True, exist_ok=True)
         dest.write_text(p.read_text() + ("\n\ndef _up():\n" if line.startswith(" ") else "\n") + line + "\n")
         if dest.relative_to(tmp_path).as_posix() != stage:
             dest.write_text(p.read_text())
