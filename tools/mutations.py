@@ -164,13 +164,25 @@ MUTATIONS = [
     ("a failed write is a traceback, not the resume line", "experiments/run_folders.py",
      "    except (OSError, RuntimeError) as e:\n        reason", "    except ZeroDivisionError as e:\n        reason",
      "tests/test_faults.py::test_a_full_disk_keeps_the_last_checkpoint_and_says_how_to_resume"),
+    ("Gymnasium env: a flip never terminates the episode", "interfaces/gymnasium_env.py",
+     "float(reward[0]), bool(terminated[0]),", "float(reward[0]), False,",
+     "tests/test_interfaces.py::test_a_flip_terminates_exactly_where_the_world_says_so"),
+    ("statistics: the bootstrap resamples all runs but the last", "experiments/stats.py",
+     "x[rng.integers(len(x), size=(resamples, len(x)))]", "x[rng.integers(len(x) - 1, size=(resamples, len(x)))]",
+     "tests/test_interfaces.py::test_our_bootstrap_ci_and_probability_of_improvement_match_rliable"),
+    ("lesson grader: any answer of the right shape passes", "lesson/grade.py",
+     "return a.shape == b.shape and bool(torch.allclose(a, b, rtol=tol, atol=tol, equal_nan=True))",
+     "return a.shape == b.shape",
+     "tests/test_lesson.py::test_a_typical_mistake_fails_with_a_message_that_names_it"),
 ]
 
 
 def copy_repo(dest: Path) -> None:
-    """The working tree's Python files, tools, experiments, tests, results and docs (no runs, caches or .git)."""
+    """The working tree's Python files, tools, experiments, interfaces, lesson, tests, results and docs
+    (no runs, caches or .git)."""
     for item in ROOT.iterdir():
-        if item.suffix == ".py" or item.name in ("tools", "experiments", "tests", "results", "docs", "README.md"):
+        if item.suffix == ".py" or item.name in ("tools", "experiments", "interfaces", "lesson", "tests", "results", "docs",
+                                                   "README.md"):
             (shutil.copytree if item.is_dir() else shutil.copy)(item, dest / item.name)
 
 
