@@ -29,6 +29,7 @@ import gymnasium                                                                
 import torch                                                                      # noqa: E402
 from stable_baselines3 import PPO                                                 # noqa: E402
 from stable_baselines3.common.callbacks import BaseCallback                       # noqa: E402
+from stable_baselines3.common.logger import Logger                                # noqa: E402
 
 import modular_rlil_minimal as rlil                                               # noqa: E402
 import sim2d                                                                      # noqa: E402
@@ -84,6 +85,7 @@ def train(design: str, steps: int, seed: int = 0, eval_every: int | None = None,
     """
     graph = sim2d.design_graph(design)
     model = PPO("MlpPolicy", gymnasium.make(ID, design=graph.code), seed=seed, **ppo_kwargs)
+    model.set_logger(Logger(folder=None, output_formats=[]))   # SB3's own would leave an empty /tmp/SB3-<date>
     rows, spent = [], {"eval": 0.0}
     f = open(out, "x", newline="") if out is not None else None       # "x": never over an existing file
     try:

@@ -206,6 +206,7 @@ def test_sb3_ppo_trains_and_is_evaluated_with_the_projects_metric(tmp_path, glob
     out = tmp_path / "ppo.csv"
     model, rows = sb3_ppo.train("car", 2048, seed=0, eval_every=1024, out=out, log=lambda *a: None)
     assert [r["steps"] for r in rows] == [0, 2048] and all(np.isfinite(r["distance_m"]) for r in rows)
+    assert model.logger.get_dir() is None                # SB3's default logger makes a /tmp/SB3-<date> folder
     with open(out, newline="") as f:
         written = list(csv.DictReader(f))
     assert [{k: float(v) for k, v in r.items()} for r in written] == rows
