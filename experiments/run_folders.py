@@ -131,7 +131,8 @@ def save_metrics(out: Path, cfg: rlil.Config, metrics: list[dict]) -> None:
     atomic_write(out / "metrics.csv", write_csv)
 
 
-COLOURS = {"RL+IL": "tab:blue", "RL": "tab:red", "PPO": "tab:green", "PPO+IL": "tab:purple"}
+COLOURS = {"RL+IL": "tab:blue", "RL": "tab:red", "PPO": "tab:green", "PPO+IL": "tab:purple",
+           "SB3 PPO": "tab:olive"}   # SB3 PPO: interfaces/sb3_ppo.py, only collected (its CSVs in sb3_ppo_runs/)
 
 
 def save_curve(out: Path, cfg, metrics: list[dict]) -> None:

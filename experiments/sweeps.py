@@ -693,6 +693,7 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
 # ----------------------------------------------------------------------------
 SAMPLE_EFFICIENCY = {"hexapod": PANELS["a"][1], "leg_none_wheel": PANELS["d"][1]}   # design: Figure 3's demos
 SAMPLE_METHODS = ("RL+IL", "RL", "PPO", "PPO+IL")     # PPO+IL: PPO with the same demos (issue #24)
+SB3_METHOD = "SB3 PPO"   # Stable-Baselines3's PPO (interfaces/sb3_ppo.py): not launched here, its CSVs collected
 THRESHOLDS_M = (5.0, 10.0, 15.0)
 SAMPLE_COLUMNS = ["train", "method", "seed", "iteration", "sim_steps", "seconds", "distance_m"]
 
@@ -737,6 +738,21 @@ def sample_efficiency_rows(runs: list[dict]) -> list[dict]:
     return rows
 
 
+def sb3_rows(folder: Path) -> list[dict]:
+    """The CSV rows (SAMPLE_COLUMNS, method SB3_METHOD) of every `interfaces/sb3_ppo.py --out
+    folder/<design>-seed<S>.csv` there (none when the folder does not exist): one row per
+    evaluation, its steps the simulator steps; its seconds exclude the evaluations."""
+    rows = []
+    for path in sorted(Path(folder).glob("*-seed*.csv")):
+        design, seed = path.stem.rsplit("-seed", 1)
+        with open(path, newline="") as f:
+            for i, r in enumerate(csv.DictReader(f)):
+                rows.append({"train": design, "method": SB3_METHOD, "seed": int(seed), "iteration": i,
+                             "sim_steps": int(r["steps"]), "seconds": float(r["seconds"]),
+                             "distance_m": float(r["distance_m"])})
+    return rows
+
+
 def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
     """[(sim_steps, mean seconds, [distance per seed]) per iteration] of one design and method;
     every seed evaluates at the same iterations and simulator steps."""
@@ -749,9 +765,12 @@ def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
 
 
 def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = (),
-                                designs=tuple(SAMPLE_EFFICIENCY), methods=SAMPLE_METHODS) -> str:
+                                designs=tuple(SAMPLE_EFFICIENCY), methods=None) -> str:
     """Markdown: per design and method, the simulator steps and seconds at which the mean over seeds
-    first reaches each of THRESHOLDS_M in 200 steps, and where each ends."""
+    first reaches each of THRESHOLDS_M in 200 steps, and where each ends.  methods: by default
+    SAMPLE_METHODS, and SB3_METHOD where the rows hold it."""
+    if methods is None:
+        methods = SAMPLE_METHODS + ((SB3_METHOD,) if any(r["method"] == SB3_METHOD for r in rows) else ())
     head = " | ".join(f"{t:g} m: steps | {t:g} m: seconds" for t in THRESHOLDS_M)
     lines = [f"| design | method | seeds | {head} | final steps | final seconds | final mean (m) | final min-max (m) |",
              "|---|---|---|" + "---|" * (2 * len(THRESHOLDS_M) + 4)]
@@ -818,14 +837,15 @@ def sample_efficiency(out: Path, base: rlil.Config, base_ppo: ppo_lib.PPOConfig,
                       collect: Path | None = None, accept_other_configs: bool = False) -> list[str]:
     """Run (or reuse) every run as its own train.py process (or, with `collect`, only read the run
     directories under `collect`), then plot, tabulate and summarise (sample_efficiency.png, .csv,
-    .md in `out`).  Run folders are checked first as in `figure3`.  Returns the runs that failed,
-    are missing, cannot be read, hold a null figure or did not finish."""
+    .md in `out`), with the SB3 PPO runs whose CSVs are in its sb3_ppo_runs/ (sb3_rows).  Run
+    folders are checked first as in `figure3`.  Returns the runs that failed, are missing, cannot be
+    read, hold a null figure or did not finish."""
     log = log or rlil.ProgressLog()
     runs = sample_efficiency_runs(collect or out, base, base_ppo, seeds, jobs)
     checked_launch(runs, 0, out, jobs, log, "sample efficiency", launcher, ray_address, collect, accept_other_configs)
     problems = [f"{r['train']} {r['method']} seed {r['seed']}: {why}" for r in runs
                 if (why := run_problem(r, r["last"], *SAMPLE_FIGURES))]
-    rows = sample_efficiency_rows(runs)
+    rows = sample_efficiency_rows(runs) + sb3_rows((collect or out) / "sb3_ppo_runs")
     write_sample_efficiency(out, rows, problems)
     summary = summarize_sample_efficiency(rows, seeds, problems)
     atomic_write(out / "sample_efficiency.md", lambda p: Path(p).write_text(summary))

@@ -363,6 +363,16 @@ def test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary(tmp
     # PPO+IL: 0.5, 4.5, 8.5 m
     assert "| hexapod | PPO+IL | 2 of 2 | 3,000 | 30 | not reached |  | not reached |  | 3,000 | 30 | 8.50 | 8.00 - 9.00 |" in table
     assert (tmp_path / "sample_efficiency.png").stat().st_size > 10_000
+    assert "SB3" not in table                           # no sb3_ppo_runs/: no SB3 row, not an empty one
+    (tmp_path / "sb3_ppo_runs").mkdir()                 # interfaces/sb3_ppo.py --out CSVs, collected as they are
+    for seed in (0, 1):
+        (tmp_path / "sb3_ppo_runs" / f"hexapod-seed{seed}.csv").write_text(
+            "steps,seconds,distance_m\n0,0.0,0.1\n2048,5.0,%.1f\n4096,9.0,%.1f\n" % (4 + 2 * seed, 12 + 2 * seed))
+    assert sweeps.sample_efficiency(tmp_path, base, base_ppo, seeds=2, jobs=2, log=quiet) == []
+    assert "hexapod,SB3 PPO,1,2,4096,9.0,14.0" in (tmp_path / "sample_efficiency.csv").read_text().splitlines()
+    table = (tmp_path / "sample_efficiency.md").read_text()   # SB3: means 0.1, 5, 13 m
+    assert "| hexapod | SB3 PPO | 2 of 2 | 2,048 | 5 | 4,096 | 9 | not reached |  | 4,096 | 9 | 13.00 | 12.00 - 14.00 |" in table
+    assert "| leg_none_wheel | SB3 PPO | 0 of 2 |" in table
 
 
 def test_the_side_by_side_table_lists_only_the_designs_and_methods_asked():

@@ -174,6 +174,10 @@ MUTATIONS = [
      "return a.shape == b.shape and bool(torch.allclose(a, b, rtol=tol, atol=tol, equal_nan=True))",
      "return a.shape == b.shape",
      "tests/test_lesson.py::test_a_typical_mistake_fails_with_a_message_that_names_it"),
+    ("sample efficiency: the SB3 PPO runs' CSVs not collected", "experiments/sweeps.py",
+     'rows = sample_efficiency_rows(runs) + sb3_rows((collect or out) / "sb3_ppo_runs")',
+     "rows = sample_efficiency_rows(runs)",
+     "tests/test_ppo.py::test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary"),
 ]
 
 
