@@ -44,6 +44,18 @@ def bootstrap_diff_ci(x, y, statistic=np.mean, resamples: int = RESAMPLES, seed:
                                - statistic(resample(y, resamples, rng), axis=-1))
 
 
+def iqm(x, axis=-1):
+    """The interquartile mean over runs (rliable's aggregate_iqm, scipy's trim_mean(x, 0.25)): sort,
+    drop int(n / 4) runs at each end, average the rest; robust to a seed that stands apart.
+
+    Example: x = [0, 1, 2, 3, 100] drops 0 and 100 (int(5 / 4) = 1), so the IQM is 2 (the mean 21.2).
+    """
+    x = np.sort(np.asarray(x, float), axis=axis)
+    n = x.shape[axis]
+    cut = int(0.25 * n)
+    return np.take(x, range(cut, n - cut), axis=axis).mean(axis=axis)
+
+
 def probability_of_improvement(x, y):
     """P(X > Y) over runs (rliable): the mean over all pairs (i, j) of 1 if x_i > y_j, 1/2 if equal,
     0 otherwise, which is the Mann-Whitney U statistic divided by n m.  Leading axes are batches.

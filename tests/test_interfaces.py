@@ -247,7 +247,7 @@ def figure3_panels() -> dict:
 def test_our_bootstrap_ci_and_probability_of_improvement_match_rliable():
     """On results/figure3.csv, per panel: P(RL+IL > RL) of the area under the curve (and of the
     iterations to converge, integers with many ties), ours against rliable.metrics.probability_of_improvement
-    over (runs x 1) score matrices; and the 95 % bootstrap interval of each method's mean area,
+    over (runs x 1) score matrices, and stats.iqm against metrics.aggregate_iqm; and the 95 % bootstrap interval of each method's mean area,
     stats.bootstrap_ci against rliable.library.get_interval_estimates (stratified over one task,
     that is the plain bootstrap over runs; percentile method; a mean aggregate).
 
@@ -281,6 +281,7 @@ def test_our_bootstrap_ci_and_probability_of_improvement_match_rliable():
                 for a, b in ((x, y), (y, x)):
                     assert abs(stats.probability_of_improvement(a, b)
                                - metrics.probability_of_improvement(a[:, None], b[:, None])) <= 1e-12, (panel, key)
+                assert abs(stats.iqm(x) - metrics.aggregate_iqm(x[:, None])) <= 1e-12, (panel, key)
             for method, s in methods.items():
                 x = np.asarray(s["auc"], float)
                 ours = np.array(stats.bootstrap_ci(x))

@@ -116,6 +116,15 @@ def test_bootstrap_intervals_of_hand_computed_cases():
     assert stats.bootstrap_ci([5.0, 1.0, 3.0], seed=1) == stats.bootstrap_ci([5.0, 1.0, 3.0], seed=1)
 
 
+def test_the_interquartile_mean_drops_a_quarter_of_the_runs_at_each_end():
+    assert stats.iqm([0.0, 1.0, 2.0, 3.0, 100.0]) == 2.0                 # int(5 / 4) = 1 run cut at each end
+    assert stats.iqm([7.0, 1.0, 3.0]) == 11 / 3                          # int(3 / 4) = 0: the mean
+    assert stats.iqm([10.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 9.0, -50.0]) == 3.5    # 10 seeds: 2 cut, mean of 1..6
+    batch = np.array([[4.0, 0.0, 1.0, 2.0], [8.0, 8.0, 0.0, 8.0]])               # a row per bootstrap resample
+    assert stats.iqm(batch).tolist() == [1.5, 8.0]
+    assert stats.bootstrap_diff_ci([3.0, 3.0, 3.0, 9.0], [1.0, 1.0, 1.0, 1.0], stats.iqm)[0] == 2.0
+
+
 def test_probability_of_improvement_is_the_pair_count_and_mann_whitney_u():
     # x = [1, 2, 3], y = [2, 2]: pairs (1,2) (1,2) (2,2) (2,2) (3,2) (3,2) score 0, 0, 1/2, 1/2, 1, 1
     assert stats.probability_of_improvement([1, 2, 3], [2, 2]) == 0.5
@@ -160,7 +169,9 @@ def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
     assert "| (d) leg_none_wheel | RL+IL converges in fewer iterations | mean iterations to converge, " \
            "RL − RL+IL (2.0 − 1.0) | 1.00 | [1.00, 1.00] | holds |" in table
     faster = next(line for line in table.splitlines() if "RL+IL learns faster" in line)
-    assert "P(RL+IL > RL) = 1.00 [1.00, 1.00] | 10.00 |" in faster and faster.endswith("| holds |")
+    # areas per seed: RL+IL 20 + 0.1 s, RL 10 + 0.1 s; the IQM of 4 seeds is the mean of the middle two
+    assert "P(RL+IL > RL) = 1.00 [1.00, 1.00]; IQM RL+IL − RL = 10.00 [" in faster and "] | 10.00 |" in faster
+    assert faster.endswith("| holds |")
     assert "| RL+IL lowers the variance of convergence |" in table and table.count("not settled") == 1
 
 
