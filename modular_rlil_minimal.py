@@ -415,7 +415,9 @@ def il_loss(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.
 
 
 def rlil_loss(loss_rl, loss_il, il_weight: float):
-    """eqn. (RLIL_loss): L = L_RL + lambda L_IL."""
+    """eqn. (RLIL_loss): L = L_RL + lambda L_IL.  Line 19 passes L_IL + w_H H as loss_il: the
+    entropy penalty on demo observations (Sec. III-J) sits inside lambda's bracket, so it decays
+    with lambda."""
     return loss_rl + il_weight * loss_il
 
 
