@@ -392,23 +392,29 @@ def rl_loss(policy: ModularPolicy, model, buffers: dict, cfg: Config, rng) -> to
     return loss
 
 
+def demo_windows(design: str, demo: demo_lib.DemoData, cfg: Config, rng: np.random.Generator):
+    """A batch of cfg.il_batch windows of cfg.il_window consecutive (o, a) pairs of one design's
+    T^i, each from a random episode and first step: the observations {"body": (n, W, 3), ...},
+    the actions (n, W, A) and the design graph."""
+    episodes, steps = demo.actions.shape[:2]
+    e = rng.integers(episodes, size=cfg.il_batch)                          # an episode per window
+    t0 = rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch)        # its first step
+    t = t0[:, None] + np.arange(cfg.il_window)                             # (batch, window)
+    obs = {k: torch.as_tensor(v[e[:, None], t], dtype=torch.float32) for k, v in demo.obs.items()}
+    actions = torch.as_tensor(demo.actions[e[:, None], t], dtype=torch.float32)
+    return obs, actions, sim2d.design_graph(design)
+
+
 def il_loss(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.Generator):
     """eqn. (IL_loss): L_IL = - sum_d sum_(o,a) log pi(a | o, d), and the mean entropy of pi on o.
 
-    Per demo design, a batch of windows of `il_window` consecutive (o, a) pairs
-    is run through the recurrent policy from a zero hidden state; the loss is
-    the mean over pairs (the sum divided by the batch size, a constant that
-    lambda absorbs), summed over designs.
+    Per demo design, a batch of windows (`demo_windows`) is run through the recurrent policy
+    from a zero hidden state; the loss is the mean over pairs (the sum divided by the batch
+    size, a constant that lambda absorbs), summed over designs.
     """
     loss, entropy = 0.0, 0.0
     for design, demo in demo_data.items():
-        episodes, steps = demo.actions.shape[:2]
-        e = rng.integers(episodes, size=cfg.il_batch)
-        t0 = rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch)
-        t = t0[:, None] + np.arange(cfg.il_window)                          # (batch, window)
-        obs = {k: torch.as_tensor(v[e[:, None], t], dtype=torch.float32) for k, v in demo.obs.items()}
-        actions = torch.as_tensor(demo.actions[e[:, None], t], dtype=torch.float32)
-        log_prob, ent = policy.sequence_log_prob(obs, actions, sim2d.design_graph(design))
+        log_prob, ent = policy.sequence_log_prob(*demo_windows(design, demo, cfg, rng))
         loss = loss - log_prob.mean()
         entropy = entropy + ent.mean()
     return loss, entropy

@@ -441,12 +441,7 @@ def il_terms(policy, demo_data, cfg, seed: int, memory: bool = True):
     """Per design, log pi (n, W) and the entropy (n, W) on the windows il_loss draws with `seed`."""
     rng, out = np.random.default_rng(seed), []
     for design, demo in demo_data.items():
-        episodes, steps = demo.actions.shape[:2]
-        e = rng.integers(episodes, size=cfg.il_batch)
-        t = rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch)[:, None] + np.arange(cfg.il_window)
-        obs = {k: torch.as_tensor(v[e[:, None], t], dtype=torch.float32) for k, v in demo.obs.items()}
-        actions = torch.as_tensor(demo.actions[e[:, None], t], dtype=torch.float32)
-        graph = sim2d.design_graph(design)
+        obs, actions, graph = rlil.demo_windows(design, demo, cfg, rng)
         if memory:
             out.append(policy.sequence_log_prob(obs, actions, graph))
             continue

@@ -16,23 +16,9 @@ if str(ROOT) not in sys.path:                  # the stage files are two folders
     sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
-import torch  # noqa: E402
 
 import gnn  # noqa: E402
-import sim2d  # noqa: E402
-
-
-def demo_windows(design: str, demo, cfg, rng: np.random.Generator):
-    """Given (the sampling is not the lesson): cfg.il_batch windows of cfg.il_window consecutive
-    steps of one design's T^i, the observations {"body": (n, W, 3), ...}, the actions (n, W, A),
-    and the design graph.  The same draws as the project's il_loss makes."""
-    episodes, steps = demo.actions.shape[:2]
-    e = rng.integers(episodes, size=cfg.il_batch)                          # an episode per window
-    t0 = rng.integers(steps - cfg.il_window + 1, size=cfg.il_batch)        # its first step
-    t = t0[:, None] + np.arange(cfg.il_window)                             # (batch, window)
-    obs = {k: torch.as_tensor(v[e[:, None], t], dtype=torch.float32) for k, v in demo.obs.items()}
-    actions = torch.as_tensor(demo.actions[e[:, None], t], dtype=torch.float32)
-    return obs, actions, sim2d.design_graph(design)
+from modular_rlil_minimal import demo_windows  # noqa: E402  (given: the sampling is not the lesson)
 
 
 def il_loss(policy: gnn.ModularPolicy, demo_data: dict, cfg, rng: np.random.Generator):
