@@ -430,6 +430,26 @@ def plain_rl_budget_table(root: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plain_rl_30_table(folder: Path) -> str:
+    """Markdown of plain RL's hexapod runs at 16x the data continued to 30 iterations (issue #34,
+    part 4; `folder` holds each run's metrics.json): per seed the distance at iterations 15, 20,
+    25 and 30, then how many seeds are at 10 m at 15 and at 30, and the means."""
+    curves = {int(p.parent.name.rsplit("seed", 1)[1]): json.loads(p.read_text())["iterations"]
+              for p in sorted(folder.glob("*-seed*/metrics.json"))}
+    at = {s: [rows[i]["distance_m"] for i in (15, 20, 25, 30)] for s, rows in sorted(curves.items()) if len(rows) > 30}
+    if not at:
+        return ""
+    lines = ["| seed | it. 15 (m) | it. 20 (m) | it. 25 (m) | it. 30 (m) | s for iterations 16-30 |", "|---|---|---|---|---|---|"]
+    lines += [f"| {s} | " + " | ".join(f"{d:.2f}" for d in ds) + f" | {sum(r['seconds'] for r in curves[s][16:31]):.0f} |"
+              for s, ds in at.items()]
+    n, means = len(at), np.mean(list(at.values()), axis=0)
+    lines.append(f"| {n} seeds: at 10 m | {sum(ds[0] >= 10 for ds in at.values())} of {n} | "
+                 f"{sum(ds[1] >= 10 for ds in at.values())} of {n} | {sum(ds[2] >= 10 for ds in at.values())} of {n} | "
+                 f"{sum(ds[3] >= 10 for ds in at.values())} of {n} | |")
+    lines.append("| mean | " + " | ".join(f"{m:.2f}" for m in means) + " | |")
+    return "\n".join(lines) + "\n"
+
+
 def generalist_table(root: Path) -> str:
     """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
     iteration where the four single-design RL+IL runs together have used at least the generalist's
@@ -504,6 +524,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "plain_rl_budget_runs").is_dir():
         with made_from(results / "plain_rl_budget_runs"):
             tables[results / "plain_rl_budget.md"] = plain_rl_budget_table(root)
+    if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
+        with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
+            tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")
     probes = sorted(results.glob("gradient_check_*.csv"))      # experiments/gradient_check.py
     if probes:
         with made_from(" and ".join(map(str, probes))):

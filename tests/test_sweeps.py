@@ -255,3 +255,17 @@ def test_plan_commands_run_anywhere_and_collect_into_the_local_csv(local_sweep, 
     problems = sweeps.figure3(tmp_path / "out", base, 1, 2, log=quiet, panels="b", collect=tmp_path / "runs")
     assert len(problems) == 1 and "(b) RL seed 0: 0 of 1 iterations" in problems[0]
     assert "Missing or failed runs" in (tmp_path / "out" / "figure3.md").read_text()
+
+
+def test_the_30_iteration_table_counts_seeds_at_10_m_and_skips_unfinished_runs(tmp_path):
+    """tables.plain_rl_30_table (issue #34, part 4) on made-up runs: seed s walks s + 0.5 m per iteration."""
+    import json
+    for seed, iters in ((0, 30), (1, 30), (2, 20)):                  # seed 2 stopped at 20: left out
+        (tmp_path / f"hexapod-rl-seed{seed}").mkdir()
+        rows = [{"iteration": i, "distance_m": (seed + 0.5) * i, "seconds": 2.0} for i in range(iters + 1)]
+        (tmp_path / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    table = tables.plain_rl_30_table(tmp_path).splitlines()
+    assert table[2] == "| 0 | 7.50 | 10.00 | 12.50 | 15.00 | 30 |" and table[3].startswith("| 1 | 22.50 |")
+    assert table[4] == "| 2 seeds: at 10 m | 1 of 2 | 2 of 2 | 2 of 2 | 2 of 2 | |"
+    assert table[5] == "| mean | 15.00 | 20.00 | 25.00 | 30.00 | |" and len(table) == 6
+    assert tables.plain_rl_30_table(tmp_path / "none") == ""
