@@ -33,9 +33,9 @@ MUTATIONS = [
      "        loss, _ = il_loss(policy, demo_data, cfg, rng)\n        opt.zero_grad()\n        loss.backward()\n",
      "tests/test_rlil.py::test_behavioural_cloning_lowers_the_il_loss"),
     ("line 5: the model takes no step", "modular_rlil_minimal.py",
-     "model_loss(model, design, flat[design], cfg.model_batch, rng)\n        opt.zero_grad()\n        loss.backward()\n"
+     "newest.get(design), cfg.recent_data)\n        opt.zero_grad()\n        loss.backward()\n"
      "        opt.step()",
-     "model_loss(model, design, flat[design], cfg.model_batch, rng)\n        opt.zero_grad()\n        loss.backward()\n",
+     "newest.get(design), cfg.recent_data)\n        opt.zero_grad()\n        loss.backward()\n",
      "tests/test_rlil.py::test_model_fit_beats_predicting_no_change"),
     ("line 16: the RL loss's sign flipped", "modular_rlil_minimal.py",
      "loss = loss - R.mean()", "loss = loss + R.mean()",
