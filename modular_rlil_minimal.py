@@ -24,7 +24,9 @@ first model also sees the clone's roll-outs (`--clone-data`,
 `add_clone_rollouts`) and an improvement check that keeps the previous policy
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
-Algorithm 1.  Mechanisms that were measured and did not help are not in the
+Algorithm 1.  A third, off by default while it is measured, draws a share of
+each model fine-tuning batch from the newest policy data (`--recent-data`,
+`newest_transitions`).  Mechanisms that were measured and did not help are not in the
 code; docs/history/ has their results.
 
 The command line is train.py:
@@ -786,8 +788,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 
 # ----------------------------------------------------------------------------
-# Not in the paper: switches against model error (docs/stability.md): clone_data and
-# keep_better, both on by default
+# Not in the paper: switches against model error (docs/results.md): clone_data and
+# keep_better, both on by default; recent_data, off by default while it is measured
 # ----------------------------------------------------------------------------
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""

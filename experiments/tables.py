@@ -405,7 +405,9 @@ PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plai
     "data16": "16x the data: 512 random, 256 + 256 policy episodes per iteration",
     "data16_margin05": "data16, improvement margin 0.5",
     "data16_nocheck": "data16, no improvement check (keep-better off)",
-    "data16_k480": "data16, K = 480 policy steps per iteration (4x)"}
+    "data16_k480": "data16, K = 480 policy steps per iteration (4x)",
+    "data16_recent05": "data16, half of each model fine-tuning mini-batch from the newest policy data "
+                       "(--recent-data 0.5); run on an AVX2 machine, the rows above on AVX512"}
 
 
 def plain_rl_budget_table(root: Path) -> str:
