@@ -173,6 +173,15 @@ def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
     assert "P(RL+IL > RL) = 1.00 [1.00, 1.00]; IQM RL+IL − RL = 10.00 [" in faster and "] | 10.00 |" in faster
     assert faster.endswith("| holds |")
     assert "| RL+IL lowers the variance of convergence |" in table and table.count("not settled") == 1
+    # Sec. V's "the same distance": final distances 20 + 0.1 s for both methods, a difference of 0 whose
+    # CI (each method's seeds resampled apart) spans at most the seeds' spread of 0.3 m: within 1 m
+    same = next(line for line in table.splitlines() if "same distance" in line)
+    assert same.startswith("| (d) leg_none_wheel | both methods converge to the same distance (Sec. V) | distance at "
+                           "iteration 2, RL+IL − RL (20.15 − 20.15), same within 1 m | 0.00 | [") and same.endswith("| holds |")
+    apart = tables.summarize_claims([dict(r, distance_m=r["distance_m"] - 3 * (r["method"] == "RL" and r["iteration"] == 2))
+                                     for r in rows], iters=2, seeds=4)   # RL ends 3 m short
+    same = next(line for line in apart.splitlines() if "same distance" in line)
+    assert "| 3.00 | [" in same and same.endswith("| fails |")
 
 
 def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper():
