@@ -24,9 +24,7 @@ first model also sees the clone's roll-outs (`--clone-data`,
 `add_clone_rollouts`) and an improvement check that keeps the previous policy
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
-Algorithm 1.  A third, off by default while it is measured, draws a share of
-each model fine-tuning batch from the newest policy data (`--recent-data`,
-`newest_transitions`).  Mechanisms that were measured and did not help are not in the
+Algorithm 1.  Mechanisms that were measured and did not help are not in the
 code; docs/history/ has their results.
 
 The command line is train.py:
@@ -145,9 +143,6 @@ class Config:
     than the kept one's, minus improvement_margin; off = the paper"""
     improvement_margin: float = 0.0
     """with keep_better: return (about metres per episode) a new policy may lose and still be kept; 0-2"""
-    recent_data: float = 0.0
-    """share of each model fine-tuning mini-batch (line 5, iterations 2 on) drawn from the newest
-    policy data, the last iteration's lines 28-29; 0 draws from all of T_train alike (the paper); 0-0.9"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -216,7 +211,7 @@ def design_codes(field_name: str, designs) -> tuple[str, ...]:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
-    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0, "recent_data": 0.0}
+    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -235,8 +230,6 @@ def validate_config(cfg: Config) -> Config:
                          f"or eval_steps ({cfg.eval_steps})")
     if cfg.batch > cfg.buffer_size:
         raise ValueError(f"batch ({cfg.batch}) must not exceed buffer_size ({cfg.buffer_size}): a batch draws from B")
-    if cfg.recent_data >= 1:
-        raise ValueError(f"recent_data must be below 1 (a share of the mini-batch), got {cfg.recent_data}")
     if cfg.il_window > cfg.demo_steps:
         raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
     return cfg
@@ -326,20 +319,12 @@ def add_policy_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cf
 # ----------------------------------------------------------------------------
 # Line 5: the model f~_phi
 # ----------------------------------------------------------------------------
-def model_loss(model: ModularModel, design: str, transitions, n: int, rng: np.random.Generator,
-               newest=None, newest_share: float = 0.0) -> torch.Tensor:
+def model_loss(model: ModularModel, design: str, transitions, n: int, rng: np.random.Generator) -> torch.Tensor:
     """Sec. III-C: one-step regression of the state change on n random transitions of one design.
-    transitions: (s, a, s') of T_train, `Trajectories.transitions()`, made once per phase.
-    With `newest` (the same of the newest policy data), round(newest_share * n) of the n
-    are drawn from it instead (not in the paper: `recent_data`)."""
-    m = round(newest_share * n) if newest is not None else 0
+    transitions: (s, a, s') of T_train, `Trajectories.transitions()`, made once per phase."""
     s, a, s_next = transitions
-    i = torch.from_numpy(rng.integers(len(s), size=n - m))
-    s, a, s_next = s[i], a[i], s_next[i]                                   # (n - m, S), (n - m, A), (n - m, S)
-    if m:
-        j = torch.from_numpy(rng.integers(len(newest[0]), size=m))
-        s, a, s_next = (torch.cat([x, y[j]]) for x, y in zip((s, a, s_next), newest))   # (n, ...)
-    return model.loss(s, a, s_next, sim2d.design_graph(design))
+    i = torch.from_numpy(rng.integers(len(s), size=n))
+    return model.loss(s[i], a[i], s_next[i], sim2d.design_graph(design))
 
 
 def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config, rng: np.random.Generator,
@@ -349,12 +334,10 @@ def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config,
     At the first iteration the input and output normalisation is fitted to
     T_train and the model takes `model_steps` Adam steps; later iterations
     fine-tune it for `finetune_steps`.  Each step sums the loss of a mini-batch
-    per training design; with `recent_data` (not in the paper) a share of each
-    fine-tuning mini-batch comes from the newest policy data (`newest_transitions`).  Returns the mean loss (normalised MSE) over the last
+    per training design.  Returns the mean loss (normalised MSE) over the last
     10 % of the steps (NaN if no steps).
     """
     flat = {d: traj.transitions() for d, traj in data.items()}             # (E*T, S), (E*T, A), (E*T, S)
-    newest = {d: newest_transitions(traj, cfg) for d, traj in data.items()} if cfg.recent_data and not first else {}
     if first:
         model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
     steps = cfg.model_steps if first else cfg.finetune_steps
@@ -364,8 +347,7 @@ def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config,
     for _ in range(steps):
         loss = 0.0
         for design in data:
-            loss = loss + model_loss(model, design, flat[design], cfg.model_batch, rng,
-                                     newest.get(design), cfg.recent_data)
+            loss = loss + model_loss(model, design, flat[design], cfg.model_batch, rng)
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -789,7 +771,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 # ----------------------------------------------------------------------------
 # Not in the paper: switches against model error (docs/results.md): clone_data and
-# keep_better, both on by default; recent_data, off by default while it is measured
+# keep_better, both on by default
 # ----------------------------------------------------------------------------
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""
@@ -804,19 +786,6 @@ def add_clone_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cfg
     aggregation of DAgger, Ross et al. 2011, and of MBRL with on-policy data, Nagabandi et al.
     2018).  Costs one data collection.  Returns the clone's return for `improvement_check`."""
     return policy_return(add_policy_rollouts(policy, data, cfg, rng), cfg)
-
-
-def newest_transitions(traj: Trajectories, cfg: Config):
-    """`recent_data`: the transitions of the newest policy data in one design's T_train, the last
-    2 x policy_episodes episodes (line 28's noiseless and noisy roll-outs of the last iteration,
-    appended last by line 29).  T_train grows by that much per iteration, so uniform draws give
-    the current policy's states a share that shrinks with i, 1/i at iteration i with the default
-    32 random and 2 x 16 policy episodes (1/2 at iteration 2, 1/15 at 15): the model fits where
-    the policy goes less and less (Sec. III-H's model bias).  Drawing a fixed share from the
-    newest data keeps that weight, as MBRL methods that weight on-policy data do (the issue's
-    "the policy's own roll-outs weighted"); the older data still fill the rest."""
-    k = 2 * cfg.policy_episodes
-    return Trajectories(traj.design, traj.states[-k:], traj.actions[-k:]).transitions()
 
 
 def policy_return(new_data: dict[str, Trajectories], cfg: Config) -> float:

@@ -77,10 +77,11 @@ def config_to_dict(cfg) -> dict:
     return {**dataclasses.asdict(cfg), **({"method": "ppo"} if is_ppo(cfg) else {}), "versions": versions()}
 
 
-# Settings that left the code (docs/ablations.md, Removed mechanisms) and the value at which the
+# Settings that left the code (docs/history/2026-11-ablations.md, "Removed mechanisms", and
+# docs/history/2026-12-plain-rl-diagnosis.md for recent_data) and the value at which the
 # code they switched on did nothing: a run written with that value is today's algorithm.
 REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
-                  "critic": False, "random_knots": 10}
+                  "critic": False, "random_knots": 10, "recent_data": 0.0}
 REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   # acted only with it on
 
 
@@ -98,7 +99,7 @@ def config_from_dict(d: dict):
     unknown += sorted(f"gnn.{k}" for k in set(d["gnn"]) - {f.name for f in dataclasses.fields(GNNConfig)})
     if unknown:
         raise UsageError(f"this run was written by another version of the code: settings {', '.join(unknown)} "
-                         "no longer exist (docs/ablations.md, Removed mechanisms); start a new run")
+                         "no longer exist (docs/results.md lists the removed mechanisms); start a new run")
     d["gnn"] = GNNConfig(**d["gnn"])
     d["train"], d["demos"] = tuple(d["train"]), tuple(d.get("demos", ()))   # PPO runs before PPO+IL had none
     return cls(**d)

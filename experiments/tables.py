@@ -418,7 +418,8 @@ PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plai
     "data16_nocheck": "data16, no improvement check (keep-better off)",
     "data16_k480": "data16, K = 480 policy steps per iteration (4x)",
     "data16_recent05": "data16, half of each model fine-tuning mini-batch from the newest policy data "
-                       "(--recent-data 0.5); run on an AVX2 machine, the rows above on AVX512",
+                       "(--recent-data 0.5, removed after this screen; last in 67d7cbd); run on an AVX2 machine, "
+                       "the rows above on AVX512",
     "data16_t10": "data16, horizon T = 10 (AVX2 machine)"}
 
 

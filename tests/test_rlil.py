@@ -154,39 +154,6 @@ def test_model_fit_beats_predicting_no_change(car_data):
     assert loss < 0.5
 
 
-@pytest.mark.parametrize("share", [0.0, 0.5, 0.75])
-def test_recent_data_draws_its_share_of_each_fine_tuning_batch_from_the_newest_policy_data(monkeypatch, car_data,
-                                                                                           share):
-    """`recent_data` (not in the paper): T_train is the random episodes plus two iterations of
-    policy data, the newest 2 x policy_episodes episodes marked by x = 1000.  A fine-tuning
-    mini-batch of n rows holds round(share * n) newest rows drawn on purpose, plus what the
-    uniform draw of the rest finds (the newest are 1/3 of T_train here); the first fit ignores
-    the switch.  Fails if the newest share is never drawn, or drawn from the wrong episodes."""
-    cfg = tiny(recent_data=share, finetune_steps=20, model_steps=20, model_batch=300)
-    old = car_data["wnwwnw"]
-    k = 2 * cfg.policy_episodes
-    older = rlil.Trajectories(old.design, old.states[:k], old.actions[:k])
-    newest = rlil.Trajectories(old.design, old.states[:k].clone(), old.actions[:k])
-    newest.states[..., 0] = 1000.0                                          # x, a marker the model never reads
-    data = {"wnwwnw": older + older + newest}
-    model, marked = rlil.ModularModel(cfg.gnn), []
-    loss = model.loss
-
-    def spy(s, a, s_next, graph):
-        marked.append(float((s[:, 0] == 1000.0).float().mean()))
-        return loss(s, a, s_next, graph)
-
-    monkeypatch.setattr(model, "loss", spy)
-    rlil.train_model(model, data, cfg, np.random.default_rng(0), first=True)
-    first, marked[:] = np.mean(marked), []
-    rlil.train_model(model, data, cfg, np.random.default_rng(0), first=False)
-    assert abs(first - 1 / 3) < 0.03, first                                 # uniform: the newest third
-    expected = share + (1 - share) / 3
-    assert abs(np.mean(marked) - expected) < 0.03, (np.mean(marked), expected)
-    if share:
-        assert min(marked) >= round(share * cfg.model_batch) / cfg.model_batch
-
-
 def test_validation_revert_goes_back_to_the_last_passed_check(monkeypatch, car_data):
     """Sec. III-J: validation rewards 1.0 (phase start), 2.0 (k = 2), 0.5 (k = 4).  The check at
     k = 4 is below the start, so the policy reverts to its parameters at k = 2, not to the
