@@ -420,7 +420,8 @@ PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plai
     "data16_recent05": "data16, half of each model fine-tuning mini-batch from the newest policy data "
                        "(--recent-data 0.5, removed after this screen; last in 67d7cbd); run on an AVX2 machine, "
                        "the rows above on AVX512",
-    "data16_t10": "data16, horizon T = 10 (AVX2 machine)"}
+    "data16_t10": "data16, horizon T = 10 (AVX2 machine)",
+    "data16_avx2": "data16 again, on the AVX2 machine of data16_recent05 and data16_t10: their ablation row"}
 
 
 def plain_rl_budget_table(root: Path) -> str:
