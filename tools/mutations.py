@@ -7,7 +7,7 @@ directory, the one line is changed there (never here), and only that test is
 run.  The table it prints (and writes to results/mutations.md, which
 docs/cli.md shows) says whether every test went red.
 
-    python tools/mutations.py            # all 46, about 9 minutes on 2 cores busy with two training runs
+    python tools/mutations.py            # all 47, about 9 minutes on 2 cores busy with two training runs
     python tools/mutations.py --only 3   # one entry, by number
 """
 from __future__ import annotations
@@ -152,6 +152,9 @@ MUTATIONS = [
     ("statistics: converged at 80 % of the best final mean, not 90 %", "experiments/sweeps.py",
      "0.9 * max(finals) if finals", "0.8 * max(finals) if finals",
      "tests/test_sweeps.py::test_the_convergence_rule_and_the_area_under_the_curve_on_made_up_curves"),
+    ("claims: Sec. V's 'same distance' judged as 'RL+IL ahead' (its margin dropped)", "experiments/tables.py",
+     "| {verdict(same, SAME_DISTANCE_M)} |", "| {verdict(same)} |",
+     "tests/test_sweeps.py::test_verdicts_and_the_claims_table_of_a_made_up_sweep"),
     ("transfer table: a held-out design at exactly 0.6 of its demonstrator not counted", "experiments/transfer.py",
      "(per_run >= GOOD_RATIO).mean()", "(per_run > GOOD_RATIO).mean()",
      "tests/test_transfer.py::test_group_table_averages_seeds_marks_seen_and_uses_only_held_out_designs"),
