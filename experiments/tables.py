@@ -466,6 +466,36 @@ def plain_rl_30_table(folder: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def rounds1_screen_table(root: Path) -> str:
+    """Markdown of the one-message-round screen (issue #33; docs/history/2026-12-one-message-round.md):
+    per panel and method, Figure 3's command with --gnn-rounds 1 (results/rounds1_runs/) against the
+    committed Figure 3 (results/figure3_runs/) on the same seeds: the area under the curve (mean m over
+    iterations 1-5) of each with its 95 % bootstrap CI, their difference, the lowest distance from
+    iteration 2 on, and the mean seconds per run (two runs at a time)."""
+    lines = ["| panel | method | seeds | area, 1 round (m) [95 % CI] | area, committed (m), same seeds "
+             "| 1 round − committed (m) [95 % CI] | lowest from iteration 2 (m) | s per run: 1 round, committed |",
+             "|---|---|---|---|---|---|---|---|"]
+    for panel in "dcab":
+        design, demos = PANELS[panel]
+        for method, tag in (("RL+IL", "_".join(demos)), ("RL", "rl")):
+            new, old = {}, {}
+            for path in sorted((root / "results" / "rounds1_runs").glob(f"{design}-{tag}-seed*/metrics.json")):
+                seed = int(path.parent.name.rsplit("seed", 1)[1])
+                committed = root / "results" / "figure3_runs" / path.parent.name / "metrics.json"
+                new[seed] = json.loads(path.read_text())["iterations"]
+                old[seed] = json.loads(committed.read_text())["iterations"]
+            if not new:
+                continue
+            auc = lambda runs: [float(np.mean([r["distance_m"] for r in rows[1:6]])) for rows in runs.values()]  # noqa: E731
+            seconds = lambda runs: np.mean([sum(r["seconds"] for r in rows) for rows in runs.values()])    # noqa: E731
+            a_new, a_old = auc(new), auc(old)
+            low = min(r["distance_m"] for rows in new.values() for r in rows[2:6])
+            lines.append(f"| ({panel}) {design} | {method} | {len(new)} | {np.mean(a_new):.2f} "
+                         f"{interval(bootstrap_ci(a_new))} | {np.mean(a_old):.2f} | {difference(a_new, a_old)} "
+                         f"| {low:.2f} | {seconds(new):.0f}, {seconds(old):.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def generalist_table(root: Path) -> str:
     """transfer.generalist_table of results/generalist/transfer.csv against figure3.csv, at the first
     iteration where the four single-design RL+IL runs together have used at least the generalist's
@@ -543,6 +573,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")
+    if (results / "rounds1_runs").is_dir():
+        with made_from(results / "rounds1_runs"):
+            tables[results / "rounds1_screen.md"] = rounds1_screen_table(root)
     probes = sorted(results.glob("gradient_check_*.csv"))      # experiments/gradient_check.py
     if probes:
         with made_from(" and ".join(map(str, probes))):
