@@ -421,7 +421,9 @@ PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plai
                        "(--recent-data 0.5, removed after this screen; last in 67d7cbd); run on an AVX2 machine, "
                        "the rows above on AVX512",
     "data16_t10": "data16, horizon T = 10 (AVX2 machine)",
-    "data16_avx2": "data16 again, on the AVX2 machine of data16_recent05 and data16_t10: their ablation row"}
+    "data16_avx2": "data16 again, on the AVX2 machine of data16_recent05 and data16_t10: their ablation row",
+    "data16_stdmin10": "data16, the policy's log-std at least -1.0 (std 0.37; --gnn-log-std-min -1.0; AVX2 machine)",
+    "data16_stdmin15": "data16, the policy's log-std at least -1.5 (std 0.22; --gnn-log-std-min -1.5; AVX2 machine)"}
 
 
 def plain_rl_budget_table(root: Path) -> str:
