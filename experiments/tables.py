@@ -488,13 +488,13 @@ def rounds1_screen_table(root: Path) -> str:
                 old[seed] = json.loads(committed.read_text())["iterations"]
             if not new:
                 continue
-            auc = lambda runs: [float(np.mean([r["distance_m"] for r in rows[1:6]])) for rows in runs.values()]  # noqa: E731
-            seconds = lambda runs: np.mean([sum(r["seconds"] for r in rows) for rows in runs.values()])    # noqa: E731
-            a_new, a_old = auc(new), auc(old)
+            a_new, a_old = ([area_under_curve({r["iteration"]: r["distance_m"] for r in rows}, 5) for rows in runs.values()]
+                            for runs in (new, old))
             low = min(r["distance_m"] for rows in new.values() for r in rows[2:6])
+            s_new, s_old = (np.mean([sum(r["seconds"] for r in rows) for rows in runs.values()]) for runs in (new, old))
             lines.append(f"| ({panel}) {design} | {method} | {len(new)} | {np.mean(a_new):.2f} "
                          f"{interval(bootstrap_ci(a_new))} | {np.mean(a_old):.2f} | {difference(a_new, a_old)} "
-                         f"| {low:.2f} | {seconds(new):.0f}, {seconds(old):.0f} |")
+                         f"| {low:.2f} | {s_new:.0f}, {s_old:.0f} |")
     return "\n".join(lines) + "\n"
 
 
