@@ -448,6 +448,42 @@ def plain_rl_budget_table(root: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+SAME_CPU = ("data16_stdmin10", "data16_recent05")   # variants read against data16 on their CPU (AVX2)
+
+
+def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "data16_avx2") -> str:
+    """Markdown of plain RL's hexapod at data16 (issue #34, parts 5 and 6): each variant in `variants`
+    against `baseline`, both from `folder`/<variant>/*-seed*/metrics.json, on the seeds both finished
+    (15 iterations): seeds at 10 m at iteration 15, the means at 15 with their 95 % bootstrap CIs,
+    the difference of the means with its CI and verdict (stats.verdict: "holds" if above 0), and
+    P(variant > baseline) with its CI.  "" when no variant shares a finished seed with the baseline."""
+    def finals(variant):
+        out = {}
+        for p in sorted((folder / variant).glob("*-seed*/metrics.json")):
+            rows = json.loads(p.read_text())["iterations"]
+            if len(rows) > 15:
+                out[int(p.parent.name.rsplit("seed", 1)[1])] = rows[15]["distance_m"]
+        return out
+
+    base = finals(baseline)
+    lines = [f"| variant | seeds | at 10 m by 15 | mean at 15 (m) [95 % CI] | {baseline}, same seeds (m) "
+             "| difference (m) [95 % CI] | verdict | P(variant > baseline) [95 % CI] |",
+             "|---|---|---|---|---|---|---|---|"]
+    for variant in variants:
+        own = finals(variant)
+        seeds = sorted(set(own) & set(base))
+        if not seeds:
+            continue
+        x, y = [own[s] for s in seeds], [base[s] for s in seeds]
+        diff = bootstrap_diff_ci(x, y)
+        lines.append(f"| {variant} | {len(seeds)} ({seeds[0]}-{seeds[-1]}) | {sum(d >= 10 for d in x)} of {len(x)}, "
+                     f"{baseline} {sum(d >= 10 for d in y)} | {np.mean(x):.2f} {interval(bootstrap_ci(x))} "
+                     f"| {np.mean(y):.2f} {interval(bootstrap_ci(y))} | {np.mean(x) - np.mean(y):+.2f} {interval(diff)} "
+                     f"| {verdict(diff)} | {probability_of_improvement(x, y):.2f} "
+                     f"{interval(probability_of_improvement_ci(x, y))} |")
+    return "\n".join(lines) + "\n" if len(lines) > 2 else ""
+
+
 def plain_rl_30_table(folder: Path) -> str:
     """Markdown of plain RL's hexapod runs at 16x the data continued to 30 iterations (issue #34,
     part 4; `folder` holds each run's metrics.json): per seed the distance at iterations 15, 20,
@@ -572,6 +608,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "plain_rl_budget_runs").is_dir():
         with made_from(results / "plain_rl_budget_runs"):
             tables[results / "plain_rl_budget.md"] = plain_rl_budget_table(root)
+            table = plain_rl_same_cpu_table(results / "plain_rl_budget_runs")
+            if table:
+                tables[results / "plain_rl_same_cpu.md"] = table
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")

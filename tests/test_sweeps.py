@@ -278,3 +278,23 @@ def test_the_30_iteration_table_counts_seeds_at_10_m_and_skips_unfinished_runs(t
     assert table[4] == "| 2 seeds: at 10 m | 1 of 2 | 2 of 2 | 2 of 2 | 2 of 2 | |"
     assert table[5] == "| mean | 15.00 | 20.00 | 25.00 | 30.00 | |" and len(table) == 6
     assert tables.plain_rl_30_table(tmp_path / "none") == ""
+
+
+def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
+    """tables.plain_rl_same_cpu_table (issue #34, parts 5-6) on made-up runs: only seeds that both the
+    variant and the baseline finished (15 iterations) count, and a clear gain reads "holds"."""
+    import json
+    def run(variant, seed, final, iters=15):
+        (tmp_path / variant / f"hexapod-rl-seed{seed}").mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": final * i / iters} for i in range(iters + 1)]
+        (tmp_path / variant / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    for seed, final in enumerate((1.0, 2.0, 3.0)):
+        run("base", seed, final)
+    run("base", 3, 50.0, iters=10)                                   # unfinished: left out
+    for seed, final in enumerate((11.0, 12.0, 13.0, 14.0)):         # seed 3 has no finished baseline
+        run("up", seed, final)
+    run("apart", 7, 9.0)                                             # no seed in common: no row
+    table = tables.plain_rl_same_cpu_table(tmp_path, ("up", "apart"), "base").splitlines()
+    assert len(table) == 3 and table[2].startswith("| up | 3 (0-2) | 3 of 3, base 0 | 12.00 [")
+    assert "| 2.00 [" in table[2] and "| +10.00 [" in table[2] and "| holds | 1.00 [1.00, 1.00] |" in table[2]
+    assert tables.plain_rl_same_cpu_table(tmp_path, ("apart",), "base") == ""
