@@ -484,6 +484,38 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
+def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str:
+    """Markdown of a candidate's runs against a baseline's on the seeds both finished (each folder
+    holds <run>-seed<S>/metrics.json): per seed the area under the curve (mean m over iterations
+    1-iters) of each, their difference and each's lowest distance from iteration 2 on; then the
+    means, the difference's 95 % bootstrap CI (each side's seeds resampled on its own) and the
+    mean seconds per run.  "" when no seed is shared."""
+    def runs(folder):
+        out = {}
+        for path in sorted(folder.glob("*-seed*/metrics.json")):
+            rows = json.loads(path.read_text())["iterations"]
+            if len(rows) > iters:
+                out[int(path.parent.name.rsplit("seed", 1)[1])] = rows
+        return out
+
+    new, old = runs(candidate), runs(baseline)
+    seeds = sorted(set(new) & set(old))
+    if not seeds:
+        return ""
+    area = {name: [area_under_curve({r["iteration"]: r["distance_m"] for r in rows[s]}, iters) for s in seeds]
+            for name, rows in (("new", new), ("old", old))}
+    low = {name: [min(r["distance_m"] for r in rows[s][2:iters + 1]) for s in seeds] for name, rows in (("new", new), ("old", old))}
+    lines = ["| seed | area, candidate (m) | area, baseline (m) | difference (m) | lowest from iteration 2: candidate, baseline (m) |",
+             "|---|---|---|---|---|"]
+    lines += [f"| {s} | {a:.2f} | {b:.2f} | {a - b:+.2f} | {lo:.2f}, {lb:.2f} |"
+              for s, a, b, lo, lb in zip(seeds, area["new"], area["old"], low["new"], low["old"])]
+    seconds = [np.mean([sum(r["seconds"] for r in rows[s]) for s in seeds]) for rows in (new, old)]
+    lines.append(f"| mean of {len(seeds)} | {np.mean(area['new']):.2f} | {np.mean(area['old']):.2f} | "
+                 f"{np.mean(area['new']) - np.mean(area['old']):+.2f} {interval(bootstrap_diff_ci(area['new'], area['old']))} "
+                 f"| {min(low['new']):.2f}, {min(low['old']):.2f}; s per run {seconds[0]:.0f}, {seconds[1]:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def plain_rl_30_table(folder: Path) -> str:
     """Markdown of plain RL's hexapod runs at 16x the data continued to 30 iterations (issue #34,
     part 4; `folder` holds each run's metrics.json): per seed the distance at iterations 15, 20,
@@ -611,6 +643,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "plain_rl_budget_runs")
             if table:
                 tables[results / "plain_rl_same_cpu.md"] = table
+    floor_d = results / "log_std_floor_runs" / "panel_d_rlil"
+    if floor_d.is_dir():
+        with made_from(floor_d):
+            tables[results / "log_std_floor_panel_d.md"] = same_seed_area_table(
+                floor_d, results / "budget_screen_runs" / "defaults")
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")

@@ -298,3 +298,20 @@ def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     assert len(table) == 3 and table[2].startswith("| up | 3 (0-2) | 3 of 3, base 0 | 12.00 [")
     assert "| 2.00 [" in table[2] and "| +10.00 [" in table[2] and "| holds | 1.00 [1.00, 1.00] |" in table[2]
     assert tables.plain_rl_same_cpu_table(tmp_path, ("apart",), "base") == ""
+
+
+def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path):
+    """tables.same_seed_area_table on made-up 5-iteration runs: the candidate walks 1 m more at
+    every iteration on seeds 0 and 1; the baseline's seed 2 is unfinished and left out."""
+    import json
+    def run(folder, seed, shift, iters=5):
+        (tmp_path / folder / f"x-seed{seed}").mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": i + shift, "seconds": 10.0} for i in range(iters + 1)]
+        (tmp_path / folder / f"x-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    for seed in (0, 1, 2):
+        run("new", seed, seed + 1.0)
+    run("old", 0, 0.0), run("old", 1, 1.0), run("old", 2, 2.0, iters=3)
+    table = tables.same_seed_area_table(tmp_path / "new", tmp_path / "old").splitlines()
+    assert table[2] == "| 0 | 4.00 | 3.00 | +1.00 | 3.00, 2.00 |" and table[3] == "| 1 | 5.00 | 4.00 | +1.00 | 4.00, 3.00 |"
+    assert table[4].startswith("| mean of 2 | 4.50 | 3.50 | +1.00 [") and table[4].endswith("s per run 60, 60 |")
+    assert len(table) == 5 and tables.same_seed_area_table(tmp_path / "new", tmp_path / "none") == ""
