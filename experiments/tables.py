@@ -488,9 +488,9 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
 def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str:
     """Markdown of a candidate's runs against a baseline's on the seeds both finished (each folder
     holds <run>-seed<S>/metrics.json): per seed the area under the curve (mean m over iterations
-    1-iters) of each, their difference and each's lowest distance from iteration 2 on; then the
-    means, the difference's 95 % bootstrap CI (each side's seeds resampled on its own) and the
-    mean seconds per run.  "" when no seed is shared."""
+    1-iters) of each, their difference, each's lowest distance from iteration 2 on and the
+    seconds per run of each; then the means, the difference's 95 % bootstrap CI (each side's seeds
+    resampled on its own), the lowest distances and the mean seconds.  "" when no seed is shared."""
     def runs(folder):
         out = {}
         for path in sorted(folder.glob("*-seed*/metrics.json")):
@@ -506,14 +506,16 @@ def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str
     area = {name: [area_under_curve({r["iteration"]: r["distance_m"] for r in rows[s]}, iters) for s in seeds]
             for name, rows in (("new", new), ("old", old))}
     low = {name: [min(r["distance_m"] for r in rows[s][2:iters + 1]) for s in seeds] for name, rows in (("new", new), ("old", old))}
-    lines = ["| seed | area, candidate (m) | area, baseline (m) | difference (m) | lowest from iteration 2: candidate, baseline (m) |",
-             "|---|---|---|---|---|"]
-    lines += [f"| {s} | {a:.2f} | {b:.2f} | {a - b:+.2f} | {lo:.2f}, {lb:.2f} |"
-              for s, a, b, lo, lb in zip(seeds, area["new"], area["old"], low["new"], low["old"])]
-    seconds = [np.mean([sum(r["seconds"] for r in rows[s]) for s in seeds]) for rows in (new, old)]
+    secs = {name: [sum(r["seconds"] for r in rows[s]) for s in seeds] for name, rows in (("new", new), ("old", old))}
+    lines = ["| seed | area, candidate (m) | area, baseline (m) | difference (m) "
+             "| lowest from iteration 2: candidate, baseline (m) | s per run: candidate, baseline |",
+             "|---|---|---|---|---|---|"]
+    lines += [f"| {s} | {a:.2f} | {b:.2f} | {a - b:+.2f} | {lo:.2f}, {lb:.2f} | {sa:.0f}, {sb:.0f} |"
+              for s, a, b, lo, lb, sa, sb in zip(seeds, area["new"], area["old"], low["new"], low["old"],
+                                                 secs["new"], secs["old"])]
     lines.append(f"| mean of {len(seeds)} | {np.mean(area['new']):.2f} | {np.mean(area['old']):.2f} | "
                  f"{np.mean(area['new']) - np.mean(area['old']):+.2f} {interval(bootstrap_diff_ci(area['new'], area['old']))} "
-                 f"| {min(low['new']):.2f}, {min(low['old']):.2f}; s per run {seconds[0]:.0f}, {seconds[1]:.0f} |")
+                 f"| {min(low['new']):.2f}, {min(low['old']):.2f} (lowest) | {np.mean(secs['new']):.0f}, {np.mean(secs['old']):.0f} |")
     return "\n".join(lines) + "\n"
 
 

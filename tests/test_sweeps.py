@@ -312,6 +312,7 @@ def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path
         run("new", seed, seed + 1.0)
     run("old", 0, 0.0), run("old", 1, 1.0), run("old", 2, 2.0, iters=3)
     table = tables.same_seed_area_table(tmp_path / "new", tmp_path / "old").splitlines()
-    assert table[2] == "| 0 | 4.00 | 3.00 | +1.00 | 3.00, 2.00 |" and table[3] == "| 1 | 5.00 | 4.00 | +1.00 | 4.00, 3.00 |"
-    assert table[4].startswith("| mean of 2 | 4.50 | 3.50 | +1.00 [") and table[4].endswith("s per run 60, 60 |")
+    assert table[2] == "| 0 | 4.00 | 3.00 | +1.00 | 3.00, 2.00 | 60, 60 |"
+    assert table[3] == "| 1 | 5.00 | 4.00 | +1.00 | 4.00, 3.00 | 60, 60 |"
+    assert table[4].startswith("| mean of 2 | 4.50 | 3.50 | +1.00 [") and table[4].endswith("| 3.00, 2.00 (lowest) | 60, 60 |")
     assert len(table) == 5 and tables.same_seed_area_table(tmp_path / "new", tmp_path / "none") == ""
