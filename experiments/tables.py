@@ -388,6 +388,19 @@ BUDGET_VARIANTS = {
     "C_bc1000": "1,000 and 250 model steps, K = 120 at iteration 1 and 60 after"}
 
 
+def seed_runs(folder: Path, pattern: str = "*", finished: int = 0) -> dict:
+    """{seed: its metrics.json rows} of every run folder/<pattern>-seed<S>/ with more than
+    `finished` iterations recorded (0: every run), in the order of the seeds."""
+    runs = {int(path.parent.name.rsplit("seed", 1)[1]): json.loads(path.read_text())["iterations"]
+            for path in folder.glob(f"{pattern}-seed*/metrics.json")}
+    return {s: rows for s, rows in sorted(runs.items()) if len(rows) > finished}
+
+
+def run_area(rows: list, iters: int) -> float:
+    """stats.area_under_curve of one run's metrics.json rows (mean distance over iterations 1-iters)."""
+    return area_under_curve({r["iteration"]: r["distance_m"] for r in rows}, iters)
+
+
 def budget_screen_table(runs: Path) -> str:
     """Markdown of the budget screen's committed runs (runs/<variant>/<run>/metrics.json): per
     variant the seeds, the area under the curve (mean m over iterations 1-5) with its 95 %
@@ -396,10 +409,7 @@ def budget_screen_table(runs: Path) -> str:
     lines = ["| variant | differs from the defaults | seeds | area under the curve (m) [95 % CI] | seeds 5, 6 (m) "
              "| lowest from iteration 2 (m) | s per run |", "|---|---|---|---|---|---|---|"]
     for variant, what in BUDGET_VARIANTS.items():
-        curves = {}
-        for path in sorted((runs / variant).glob("*-seed*/metrics.json")):
-            rows = json.loads(path.read_text())["iterations"]
-            curves[int(path.parent.name.rsplit("seed", 1)[1])] = rows
+        curves = seed_runs(runs / variant)
         if not curves:
             continue
         auc = {s: float(np.mean([r["distance_m"] for r in rows[1:]])) for s, rows in curves.items()}
@@ -436,9 +446,7 @@ def plain_rl_budget_table(root: Path) -> str:
     lines = ["| variant | differs from the defaults | seeds | distance at iterations 5, 10, 15 per seed (m) "
              "| 10 m by 15 | mean at 15 (m) | s per run |", "|---|---|---|---|---|---|---|"]
     for variant, what in PLAIN_RL_VARIANTS.items():
-        curves = {int(p.parent.name.rsplit("seed", 1)[1]): json.loads(p.read_text())["iterations"]
-                  for p in sorted(folders[variant].glob("*-seed*/metrics.json"))}
-        curves = {s: rows for s, rows in sorted(curves.items()) if len(rows) > 15}
+        curves = seed_runs(folders[variant], finished=15)
         if not curves:
             continue
         at = {s: [rows[i]["distance_m"] for i in (5, 10, 15)] for s, rows in curves.items()}
@@ -459,12 +467,7 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     the difference of the means with its CI and verdict (stats.verdict: "holds" if above 0), and
     P(variant > baseline) with its CI.  "" when no variant shares a finished seed with the baseline."""
     def finals(variant):
-        out = {}
-        for p in sorted((folder / variant).glob("*-seed*/metrics.json")):
-            rows = json.loads(p.read_text())["iterations"]
-            if len(rows) > 15:
-                out[int(p.parent.name.rsplit("seed", 1)[1])] = rows[15]["distance_m"]
-        return out
+        return {s: rows[15]["distance_m"] for s, rows in seed_runs(folder / variant, finished=15).items()}
 
     base = finals(baseline)
     lines = [f"| variant | seeds | at 10 m by 15 | mean at 15 (m) [95 % CI] | {baseline}, same seeds (m) "
@@ -491,22 +494,14 @@ def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str
     1-iters) of each, their difference, each's lowest distance from iteration 2 on and the
     seconds per run of each; then the means, the difference's 95 % bootstrap CI (each side's seeds
     resampled on its own), the lowest distances and the mean seconds.  "" when no seed is shared."""
-    def runs(folder):
-        out = {}
-        for path in sorted(folder.glob("*-seed*/metrics.json")):
-            rows = json.loads(path.read_text())["iterations"]
-            if len(rows) > iters:
-                out[int(path.parent.name.rsplit("seed", 1)[1])] = rows
-        return out
-
-    new, old = runs(candidate), runs(baseline)
-    seeds = sorted(set(new) & set(old))
+    sides = {"new": seed_runs(candidate, finished=iters), "old": seed_runs(baseline, finished=iters)}
+    seeds = sorted(set(sides["new"]) & set(sides["old"]))
     if not seeds:
         return ""
-    area = {name: [area_under_curve({r["iteration"]: r["distance_m"] for r in rows[s]}, iters) for s in seeds]
-            for name, rows in (("new", new), ("old", old))}
-    low = {name: [min(r["distance_m"] for r in rows[s][2:iters + 1]) for s in seeds] for name, rows in (("new", new), ("old", old))}
-    secs = {name: [sum(r["seconds"] for r in rows[s]) for s in seeds] for name, rows in (("new", new), ("old", old))}
+    area, low, secs = ({name: [of(runs[s]) for s in seeds] for name, runs in sides.items()}
+                       for of in (lambda rows: run_area(rows, iters),
+                                  lambda rows: min(r["distance_m"] for r in rows[2:iters + 1]),
+                                  lambda rows: sum(r["seconds"] for r in rows)))
     lines = ["| seed | area, candidate (m) | area, baseline (m) | difference (m) "
              "| lowest from iteration 2: candidate, baseline (m) | s per run: candidate, baseline |",
              "|---|---|---|---|---|---|"]
@@ -523,9 +518,8 @@ def plain_rl_30_table(folder: Path) -> str:
     """Markdown of plain RL's hexapod runs at 16x the data continued to 30 iterations (issue #34,
     part 4; `folder` holds each run's metrics.json): per seed the distance at iterations 15, 20,
     25 and 30, then how many seeds are at 10 m at 15 and at 30, and the means."""
-    curves = {int(p.parent.name.rsplit("seed", 1)[1]): json.loads(p.read_text())["iterations"]
-              for p in sorted(folder.glob("*-seed*/metrics.json"))}
-    at = {s: [rows[i]["distance_m"] for i in (15, 20, 25, 30)] for s, rows in sorted(curves.items()) if len(rows) > 30}
+    curves = seed_runs(folder, finished=30)
+    at = {s: [rows[i]["distance_m"] for i in (15, 20, 25, 30)] for s, rows in curves.items()}
     if not at:
         return ""
     lines = ["| seed | it. 15 (m) | it. 20 (m) | it. 25 (m) | it. 30 (m) | s for iterations 16-30 |", "|---|---|---|---|---|---|"]
@@ -551,16 +545,14 @@ def rounds1_screen_table(root: Path) -> str:
     for panel in "dcab":
         design, demos = PANELS[panel]
         for method, tag in (("RL+IL", "_".join(demos)), ("RL", "rl")):
-            new, old = {}, {}
-            for path in sorted((root / "results" / "rounds1_runs").glob(f"{design}-{tag}-seed*/metrics.json")):
-                seed = int(path.parent.name.rsplit("seed", 1)[1])
-                committed = root / "results" / "figure3_runs" / path.parent.name / "metrics.json"
-                new[seed] = json.loads(path.read_text())["iterations"]
-                old[seed] = json.loads(committed.read_text())["iterations"]
+            new = seed_runs(root / "results" / "rounds1_runs", f"{design}-{tag}")
             if not new:
                 continue
-            a_new, a_old = ([area_under_curve({r["iteration"]: r["distance_m"] for r in rows}, 5) for rows in runs.values()]
-                            for runs in (new, old))
+            committed = seed_runs(root / "results" / "figure3_runs", f"{design}-{tag}")
+            if set(new) - set(committed):
+                raise UsageError(f"results/figure3_runs/ has no {design}-{tag} run of seeds {sorted(set(new) - set(committed))}")
+            old = {s: committed[s] for s in new}
+            a_new, a_old = ([run_area(rows, 5) for rows in runs.values()] for runs in (new, old))
             low = min(r["distance_m"] for rows in new.values() for r in rows[2:6])
             s_new, s_old = (np.mean([sum(r["seconds"] for r in rows) for rows in runs.values()]) for runs in (new, old))
             lines.append(f"| ({panel}) {design} | {method} | {len(new)} | {np.mean(a_new):.2f} "
