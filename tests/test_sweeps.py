@@ -294,6 +294,10 @@ def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     for seed, final in enumerate((11.0, 12.0, 13.0, 14.0)):         # seed 3 has no finished baseline
         run("up", seed, final)
     run("apart", 7, 9.0)                                             # no seed in common: no row
+    for seed, final in enumerate((9.0, 12.0, 3.0)):                 # one of three at 10 m
+        run("mixed", seed, final)
+    assert tables.plain_rl_same_cpu_table(tmp_path, ("mixed",), "base").splitlines()[2].startswith(
+        "| mixed | 3 (0-2) | 1 of 3, base 0 | 8.00 [")
     table = tables.plain_rl_same_cpu_table(tmp_path, ("up", "apart"), "base").splitlines()
     assert len(table) == 3 and table[2].startswith("| up | 3 (0-2) | 3 of 3, base 0 | 12.00 [")
     assert "| 2.00 [" in table[2] and "| +10.00 [" in table[2] and "| holds | 1.00 [1.00, 1.00] |" in table[2]
