@@ -143,6 +143,10 @@ class Config:
     than the kept one's, minus improvement_margin; off = the paper"""
     improvement_margin: float = 0.0
     """with keep_better: return (about metres per episode) a new policy may lose and still be kept; 0-2"""
+    random_waves: bool = False
+    """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
+    episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
+    of resting at a limit; off = the paper"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -270,8 +274,11 @@ def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) 
     """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over an
     episode (the paper's 100 steps: cfg.episode_steps)."""
     graph = sim2d.design_graph(design)
-    actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
-                                          std=cfg.random_action_std)                  # (E, T, A)
+    if cfg.random_waves:                                   # not the paper: the last section of this file
+        actions = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps)
+    else:
+        actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
+                                              std=cfg.random_action_std)              # (E, T, A)
     return Trajectories.from_episodes(sim2d.simulate(graph, lambda obs, s, t: actions[:, t], cfg.random_episodes,
                                                      cfg.episode_steps, seed=new_seed(rng)))
 
