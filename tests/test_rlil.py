@@ -254,6 +254,19 @@ def test_entropy_penalty_makes_the_policy_more_certain_on_demo_observations(car_
     assert entropies[1.0] < entropies[0.0] - 0.2, entropies
 
 
+def test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off():
+    """Line 2's actions: the paper's splines of std random_action_std, or with --random-waves the
+    sine waves of sim2d.random_wave_actions, from the same generator."""
+    graph = sim2d.design_graph("hexapod")
+    for waves, draw in ((False, lambda rng, n, T: sim2d.random_spline_actions(rng, n, graph.action_dim, T, std=0.5)),
+                        (True, lambda rng, n, T: sim2d.random_wave_actions(rng, n, graph.action_dim, T))):
+        cfg = tiny(random_waves=waves, random_action_std=0.5)
+        data = rlil.collect_random_rollouts("hexapod", cfg, np.random.default_rng(4))
+        expected = draw(np.random.default_rng(4), cfg.random_episodes, cfg.episode_steps)
+        assert data.actions.shape == expected.shape
+        np.testing.assert_allclose(data.actions.numpy(), expected, atol=1e-6)
+
+
 def test_rlil_loss_is_the_equation():
     """eqn. (RLIL_loss): L = L_RL + lambda L_IL."""
     assert rlil.rlil_loss(torch.tensor(-2.0), torch.tensor(3.0), 0.5).item() == pytest.approx(-0.5)

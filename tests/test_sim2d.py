@@ -187,6 +187,35 @@ def test_spline_actions_pass_through_their_knots_drawn_with_the_given_std():
     assert 0.2 < a.std() < 0.4                                               # between knots: a smooth curve
 
 
+def test_wave_actions_swing_each_joint_at_the_episodes_period_and_keep_the_joints_off_their_limits():
+    """--random-waves: per episode one period in 0.3-1.2 s shared by every DoF, per DoF its own
+    amplitude in 0.3-1 and phase.  In the simulator the hexapod's joints rest at a limit far less
+    often than under the paper's splines (part 7 of docs/history/2026-12-plain-rl-diagnosis.md)."""
+    a = sim2d.random_wave_actions(np.random.default_rng(0), 32, 12, 100)
+    assert a.shape == (32, 100, 12) and np.abs(a).max() <= 1.0
+    spectrum = np.abs(np.fft.rfft(a - a.mean(1, keepdims=True), n=1200, axis=1))       # (32, 601, 12)
+    hz = np.fft.rfftfreq(1200, sim2d.CONTROL_DT)[spectrum.argmax(1)]                      # (32, 12) peak per DoF
+    assert ((hz > 1 / 1.2 - 0.05) & (hz < 1 / 0.3 + 0.05)).all()
+    assert (np.ptp(hz, axis=1) < 0.05).all()                                            # one period per episode
+    assert np.ptp(hz[:, 0]) > 1.0                                                       # episodes differ
+    half_range = np.ptp(a, axis=1) / 2                                                  # (32, 12) amplitudes
+    assert half_range.min() > 0.25 and half_range.max() <= 1.0 and half_range.std() > 0.1
+    corr = np.corrcoef(a[0].T)[np.triu_indices(12, 1)]                                  # phases differ per DoF
+    assert np.abs(corr).min() < 0.5
+
+    g = sim2d.design_graph("hexapod")
+
+    def at_limit(actions):
+        run = sim2d.simulate(g, lambda obs, s, t: actions[:, t], 16, 100, seed=1)
+        q = sim2d.split_state(run.states.reshape(-1, g.state_dim), g)["leg"][..., :2]
+        limits = np.array([sim2d.HIP_LIMITS, sim2d.KNEE_LIMITS])                        # (2 joints, lo/hi)
+        return (np.abs(q[..., None] - limits).min(-1) < 0.05).mean()
+
+    splines = at_limit(sim2d.random_spline_actions(np.random.default_rng(0), 16, g.action_dim, 100))
+    waves = at_limit(sim2d.random_wave_actions(np.random.default_rng(0), 16, g.action_dim, 100))
+    assert splines > 0.5 and waves < 0.5 * splines
+
+
 def test_rendering_writes_files(tmp_path):
     g = sim2d.design_graph("leg_none_wheel")
     states = sim2d.simulate(g, lambda obs, s, t: np.full((1, g.action_dim), -0.5), n=1, steps=6).states[0]
