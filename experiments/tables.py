@@ -489,6 +489,30 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
+def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU) -> str:
+    """Markdown of issue #34's other marks on plain RL's 15-iteration hexapod runs, per variant of
+    `folder`/<variant>/*-seed*/metrics.json (finished runs): the model's flattery (its 20-step
+    progress of the evaluated policy minus the simulator's, mean over seeds) at iteration 1 and at
+    its worst iteration, the share of new policies the improvement check kept (iterations 2-15),
+    and the largest fall of distance between consecutive iterations from iteration 0 on, with the
+    seeds that fall more than 3 m."""
+    lines = ["| variant | seeds | flattery at iteration 1 (m) | worst flattery (m, iteration) | new policies kept, "
+             "iterations 2-15 | largest fall (m) | seeds falling > 3 m |", "|---|---|---|---|---|---|---|"]
+    for variant in variants:
+        runs = seed_runs(folder / variant, finished=15)
+        if not runs:
+            continue
+        gap = {i: np.mean([rows[i]["model_progress_m"] - rows[i]["sim_progress_m"] for rows in runs.values()])
+               for i in range(1, 16)}
+        worst = max(gap, key=gap.get)
+        kept = np.mean([rows[i]["kept_new"] for rows in runs.values() for i in range(2, 16)])
+        falls = {s: max(rows[i]["distance_m"] - rows[i + 1]["distance_m"] for i in range(15)) for s, rows in runs.items()}
+        falling = ", ".join(str(s) for s, f in falls.items() if f > 3) or "none"
+        lines.append(f"| {variant} | {len(runs)} | {gap[1]:+.2f} | {gap[worst]:+.2f} ({worst}) | {kept:.0%} "
+                     f"| {max(0.0, max(falls.values())):.2f} | {falling} |")
+    return "\n".join(lines) + "\n" if len(lines) > 2 else ""
+
+
 def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str:
     """Markdown of a candidate's runs against a baseline's on the seeds both finished (each folder
     holds <run>-seed<S>/metrics.json): per seed the area under the curve (mean m over iterations
@@ -639,6 +663,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "plain_rl_budget_runs")
             if table:
                 tables[results / "plain_rl_same_cpu.md"] = table
+            table = plain_rl_targets_table(results / "plain_rl_budget_runs")
+            if table:
+                tables[results / "plain_rl_targets.md"] = table
     floor_d = results / "log_std_floor_runs" / "panel_d_rlil"
     if floor_d.is_dir():
         with made_from(floor_d):

@@ -304,6 +304,28 @@ def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     assert tables.plain_rl_same_cpu_table(tmp_path, ("apart",), "base") == ""
 
 
+def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_path):
+    """tables.plain_rl_targets_table on made-up 15-iteration runs: seed 0 is flattered by 1 m at
+    iteration 1 and 0.2 m after, keeps every second new policy and falls 4 m from iteration 14 to 15;
+    seed 1 is flattered by 0.2 m throughout, keeps none and falls 3.5 m from iteration 0 to 1; an
+    unfinished run is left out."""
+    import json
+    def run(seed, flattery, kept, fall_at=None, iters=15, start=0.0):
+        rows = [{"iteration": 0, "distance_m": start}]
+        for i in range(1, iters + 1):
+            d = i - (5.0 if fall_at is not None and i > fall_at else 0.0)
+            rows.append({"iteration": i, "distance_m": d, "sim_progress_m": 0.5,
+                         "model_progress_m": 0.5 + flattery(i), "kept_new": kept(i)})
+        (tmp_path / "v" / f"hexapod-rl-seed{seed}").mkdir(parents=True)
+        (tmp_path / "v" / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    run(0, lambda i: 1.0 if i == 1 else 0.2, lambda i: i % 2 == 0, fall_at=14)
+    run(1, lambda i: 0.2, lambda i: False, start=4.5)
+    run(2, lambda i: 9.0, lambda i: True, iters=10)                     # unfinished: left out
+    table = tables.plain_rl_targets_table(tmp_path, ("v", "none")).splitlines()
+    assert len(table) == 3 and table[2] == "| v | 2 | +0.60 | +0.60 (1) | 25% | 4.00 | 0, 1 |"
+    assert tables.plain_rl_targets_table(tmp_path, ("none",)) == ""
+
+
 def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path):
     """tables.same_seed_area_table on made-up 5-iteration runs: the candidate walks 1 m more at
     every iteration on seeds 0 and 1; the baseline's seed 2 is unfinished and left out."""
