@@ -666,11 +666,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_targets_table(results / "plain_rl_budget_runs")
             if table:
                 tables[results / "plain_rl_targets.md"] = table
-    floor_d = results / "log_std_floor_runs" / "panel_d_rlil"
-    if floor_d.is_dir():
-        with made_from(floor_d):
-            tables[results / "log_std_floor_panel_d.md"] = same_seed_area_table(
-                floor_d, results / "budget_screen_runs" / "defaults")
+    for name, folder in (("log_std_floor_panel_d", "log_std_floor_runs"), ("random_waves_panel_d", "random_waves_runs")):
+        candidate = results / folder / "panel_d_rlil"        # the main command with one switch, against its defaults
+        if candidate.is_dir():
+            with made_from(candidate):
+                tables[results / f"{name}.md"] = same_seed_area_table(candidate, results / "budget_screen_runs" / "defaults")
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")
