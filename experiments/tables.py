@@ -435,7 +435,8 @@ PLAIN_RL_VARIANTS = {    # results/plain_rl_budget_runs/<variant>: hexapod, plai
     "data16_stdmin10": "data16, the policy's log-std at least -1.0 (std 0.37; --gnn-log-std-min -1.0; AVX2 machine)",
     "data16_stdmin15": "data16, the policy's log-std at least -1.5 (std 0.22; --gnn-log-std-min -1.5; AVX2 machine)",
     "data16_stdmin05": "data16, the policy's log-std at least -0.5 (std 0.61; --gnn-log-std-min -0.5; AVX2 machine)",
-    "data16_waves": "data16, line 2's random actions as sine waves (--random-waves on; AVX2 machine)"}
+    "data16_waves": "data16, line 2's random actions as sine waves (--random-waves on; AVX2 machine)",
+    "data16_waves_stdmin10": "data16_waves with the -1.0 log-std floor (--random-waves on --gnn-log-std-min -1.0; AVX2 machine)"}
 
 
 def plain_rl_budget_table(root: Path) -> str:
@@ -458,7 +459,7 @@ def plain_rl_budget_table(root: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-SAME_CPU = ("data16_stdmin10", "data16_stdmin05", "data16_recent05", "data16_waves")   # variants read against data16 on their CPU (AVX2)
+SAME_CPU = ("data16_stdmin10", "data16_stdmin05", "data16_recent05", "data16_waves", "data16_waves_stdmin10")   # variants read against data16 on their CPU (AVX2)
 
 
 def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "data16_avx2") -> str:
