@@ -24,8 +24,9 @@ first model also sees the clone's roll-outs (`--clone-data`,
 `add_clone_rollouts`) and an improvement check that keeps the previous policy
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
-Algorithm 1.  Mechanisms that were measured and did not help are not in the
-code; docs/history/ has their results.
+Algorithm 1.  One more, off by default and not yet shown to help: `--random-waves`
+(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Mechanisms that
+were measured and did not help are not in the code; docs/history/ has their results.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
@@ -272,9 +273,10 @@ def new_seed(rng: np.random.Generator) -> int:
 
 def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
     """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over an
-    episode (the paper's 100 steps: cfg.episode_steps)."""
+    episode (the paper's 100 steps: cfg.episode_steps); with cfg.random_waves (not the paper, off by
+    default) sine waves instead (sim2d.random_wave_actions)."""
     graph = sim2d.design_graph(design)
-    if cfg.random_waves:                                   # not the paper: the last section of this file
+    if cfg.random_waves:
         actions = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps)
     else:
         actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
