@@ -193,7 +193,8 @@ def parse_bool(text: str) -> bool:
 def build_parser() -> sim2d.CliParser:
     p = sim2d.CliParser(description="Modular RL+IL (Algorithm 1) and the PPO baseline on the planar world.")
     p.add_argument("--preset", default="default", help=f"named budget the flags below override: "
-                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget and the class demo)")
+                   f"{', '.join(rlil.PRESETS)} (tiny: the tests' budget and the class demo; walk: Figure 3's "
+                   "panel (a), where plain RL walks the hexapod)")
     p.add_argument("--out", help="run directory (default runs/<train>-<demos or rl>-seed<S>); with --transfer: "
                    "the folder of its outputs (default runs/transfer)")
     p.add_argument("--resume", action="store_true", help="continue an existing run after its last iteration")

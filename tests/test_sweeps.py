@@ -342,3 +342,18 @@ def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path
     assert table[3] == "| 1 | 5.00 | 4.00 | +1.00 | 4.00, 3.00 | 60, 60 |"
     assert table[4].startswith("| mean of 2 | 4.50 | 3.50 | +1.00 [") and table[4].endswith("| 3.00, 2.00 (lowest) | 60, 60 |")
     assert len(table) == 5 and tables.same_seed_area_table(tmp_path / "new", tmp_path / "none") == ""
+
+
+def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
+    """`--preset walk` (README: the budget of Figure 3's panel (a)) must be the config every committed
+    run of that budget records, so that the README's command reproduces them; fails when the preset
+    and the runs part (a changed field, a switch left out)."""
+    root = sweeps.ROOT / "results"
+    paths = sorted(root.glob("plain_rl_budget_runs/data16_waves_stdmin10/*-seed*/metrics.json"))
+    paths += sorted(root.glob("figure3_walk_runs/*-seed*/metrics.json"))
+    assert len(paths) >= 10
+    for path in paths:
+        saved, why = sweeps.read_metrics(path.parent)
+        assert why is None, f"{path}: {why}"
+        cfg = saved["cfg"]
+        assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1), path
