@@ -101,6 +101,15 @@ def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
 
 
 
+def paired_claims(rows: list[dict]) -> str:
+    """summarize_claims of a sweep's rows on the seeds that both methods finished (reached the
+    rows' last iteration): a sweep still running compares like with like."""
+    last = max(r["iteration"] for r in rows)
+    done = {(r["method"], r["seed"]) for r in rows if r["iteration"] == last}
+    both = {s for _, s in done if {("RL", s), ("RL+IL", s)} <= done}
+    return summarize_claims([r for r in rows if r["seed"] in both], last, len(both))
+
+
 # ----------------------------------------------------------------------------
 # The stability screens: switches against collapse between iterations, panels (a)
 # and (d), both methods, 5 seeds, each against the default on the same seeds
@@ -490,17 +499,21 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
-def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU) -> str:
-    """Markdown of issue #34's other marks on plain RL's 15-iteration hexapod runs, per variant of
-    `folder`/<variant>/*-seed*/metrics.json (finished runs): the model's flattery (its 20-step
-    progress of the evaluated policy minus the simulator's, mean over seeds) at iteration 1 and at
-    its worst iteration, the share of new policies the improvement check kept (iterations 2-15),
-    and the largest fall of distance between consecutive iterations from iteration 0 on, with the
-    seeds that fall more than 3 m."""
+WALK_RLIL = ("walk RL+IL", "figure3_walk_runs", "hexapod-hexapod")   # panel (a) at --preset walk, RL+IL
+
+
+def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, more=()) -> str:
+    """Markdown of issue #34's other marks on the 15-iteration hexapod runs, per variant of
+    `folder`/<variant>/*-seed*/metrics.json (finished runs), then per (label, folder, run name) of
+    `more` (runs folder/<run name>-seed*/): the model's flattery (its 20-step progress of the
+    evaluated policy minus the simulator's, mean over seeds) at iteration 1 and at its worst
+    iteration, the share of new policies the improvement check kept (iterations 2-15), and the
+    largest fall of distance between consecutive iterations from iteration 0 on, with the seeds
+    that fall more than 3 m."""
     lines = ["| variant | seeds | flattery at iteration 1 (m) | worst flattery (m, iteration) | new policies kept, "
              "iterations 2-15 | largest fall (m) | seeds falling > 3 m |", "|---|---|---|---|---|---|---|"]
-    for variant in variants:
-        runs = seed_runs(folder / variant, finished=15)
+    for variant, runs in ([(v, seed_runs(folder / v, finished=15)) for v in variants]
+                          + [(label, seed_runs(path, name, finished=15)) for label, path, name in more]):
         if not runs:
             continue
         gap = {i: np.mean([rows[i]["model_progress_m"] - rows[i]["sim_progress_m"] for rows in runs.values()])
@@ -646,6 +659,12 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         tables[results / "figure3.md"] = figure3_table(rows)
         tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
                                                                  len({r["seed"] for r in rows}))
+    walk = results / "figure3_walk" / "figure3.csv"       # panel (a) at --preset walk: train.py --figure3 --collect
+    if walk.exists():
+        with made_from(walk):
+            rows = read_rows_csv(walk)
+            tables[walk.with_suffix(".md")] = figure3_table(rows)
+            tables[walk.parent / "figure3_claims.md"] = paired_claims(rows)
     if (results / "stability_confirm.csv").exists():     # the README's main command: panel (d), RL+IL, today's defaults
         with made_from(results / "stability_confirm.csv"):
             main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")
@@ -664,7 +683,8 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "plain_rl_budget_runs")
             if table:
                 tables[results / "plain_rl_same_cpu.md"] = table
-            table = plain_rl_targets_table(results / "plain_rl_budget_runs")
+            table = plain_rl_targets_table(results / "plain_rl_budget_runs",
+                                           more=[(WALK_RLIL[0], results / WALK_RLIL[1], WALK_RLIL[2])])
             if table:
                 tables[results / "plain_rl_targets.md"] = table
     for name, folder in (("log_std_floor_panel_d", "log_std_floor_runs"), ("random_waves_panel_d", "random_waves_runs")):

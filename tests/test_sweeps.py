@@ -182,6 +182,11 @@ def test_verdicts_and_the_claims_table_of_a_made_up_sweep():
                                      for r in rows], iters=2, seeds=4)   # RL ends 3 m short
     same = next(line for line in apart.splitlines() if "same distance" in line)
     assert "| 3.00 | [" in same and same.endswith("| fails |")
+    # a sweep still running: RL+IL's seed 3 stopped at iteration 1 and seed 4 is RL's alone; the claims
+    # compare seeds 0-2, which both methods finished
+    rows = [r for r in rows if not (r["method"] == "RL+IL" and r["seed"] == 3 and r["iteration"] == 2)]
+    rows += [dict(r, seed=4, distance_m=99.0) for r in rows if r["method"] == "RL" and r["seed"] == 0]
+    assert tables.paired_claims(rows) == tables.summarize_claims([r for r in rows if r["seed"] < 3], iters=2, seeds=3)
 
 
 def test_variant_table_counts_falls_from_iteration_1_and_compares_with_the_paper():
@@ -310,20 +315,24 @@ def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_p
     seed 1 is flattered by 0.2 m throughout, keeps none and falls 3.5 m from iteration 0 to 1; an
     unfinished run is left out."""
     import json
-    def run(seed, flattery, kept, fall_at=None, iters=15, start=0.0):
+    def run(seed, flattery, kept, fall_at=None, iters=15, start=0.0, where="v/hexapod-rl"):
         rows = [{"iteration": 0, "distance_m": start}]
         for i in range(1, iters + 1):
             d = i - (5.0 if fall_at is not None and i > fall_at else 0.0)
             rows.append({"iteration": i, "distance_m": d, "sim_progress_m": 0.5,
                          "model_progress_m": 0.5 + flattery(i), "kept_new": kept(i)})
-        (tmp_path / "v" / f"hexapod-rl-seed{seed}").mkdir(parents=True)
-        (tmp_path / "v" / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        (tmp_path / f"{where}-seed{seed}").mkdir(parents=True)
+        (tmp_path / f"{where}-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
     run(0, lambda i: 1.0 if i == 1 else 0.2, lambda i: i % 2 == 0, fall_at=14)
     run(1, lambda i: 0.2, lambda i: False, start=4.5)
     run(2, lambda i: 9.0, lambda i: True, iters=10)                     # unfinished: left out
     table = tables.plain_rl_targets_table(tmp_path, ("v", "none")).splitlines()
     assert len(table) == 3 and table[2] == "| v | 2 | +0.60 | +0.60 (1) | 25% | 4.00 | 0, 1 |"
     assert tables.plain_rl_targets_table(tmp_path, ("none",)) == ""
+    run(0, lambda i: 0.1, lambda i: True, where="walk/hexapod-hexapod")  # `more`: runs of one name in a folder
+    run(1, lambda i: 9.0, lambda i: True, where="walk/hexapod-rl")       # another run name: left out
+    table = tables.plain_rl_targets_table(tmp_path, ("v",), more=[("walk RL+IL", tmp_path / "walk", "hexapod-hexapod")])
+    assert table.splitlines()[3] == "| walk RL+IL | 1 | +0.10 | +0.10 (1) | 100% | 0.00 | none |"
 
 
 def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path):
