@@ -155,7 +155,7 @@ class Config:
 # (`python train.py --train car --preset tiny`): the car learns to drive in it.
 # "walk" is the budget at which plain RL learns to walk the hexapod (Figure 3's panel (a),
 # docs/results.md): 16x the data per iteration, line 2's actions as sine waves, a log-std
-# floor of -1.0 for the policy's noise, 15 iterations; about 15 minutes a run on one core.
+# floor of -1.0 for the policy's noise, 15 iterations; 14-18 minutes a run on one core.
 PRESETS = {
     "default": {},
     "tiny": dict(iters=2, threads=1, random_episodes=8, episode_steps=40, policy_episodes=4,
@@ -741,7 +741,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
             log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
                 f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
         data = {d: collect_random_rollouts(d, cfg, rng) for d in designs}                         # line 2
-        log(f"line 2   random {'sine-wave' if cfg.random_waves else 'spline'} data: {sum(len(d.actions) for d in data.values())} episodes")
+        log(f"line 2   random {'sine-wave' if cfg.random_waves else 'spline'} data: "
+            f"{sum(len(d.actions) for d in data.values())} episodes")
         run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
         if uses_clone_data(cfg):                                                            # not in the paper
             run.kept_return = add_clone_rollouts(policy, data, cfg, rng)

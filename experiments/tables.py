@@ -499,9 +499,6 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
-WALK_RLIL = ("walk RL+IL", "figure3_walk_runs", "hexapod-hexapod")   # panel (a) at --preset walk, RL+IL
-
-
 def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, more=()) -> str:
     """Markdown of issue #34's other marks on the 15-iteration hexapod runs, per variant of
     `folder`/<variant>/*-seed*/metrics.json (finished runs), then per (label, folder, run name) of
@@ -683,8 +680,8 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "plain_rl_budget_runs")
             if table:
                 tables[results / "plain_rl_same_cpu.md"] = table
-            table = plain_rl_targets_table(results / "plain_rl_budget_runs",
-                                           more=[(WALK_RLIL[0], results / WALK_RLIL[1], WALK_RLIL[2])])
+            table = plain_rl_targets_table(results / "plain_rl_budget_runs",      # and panel (a)'s RL+IL at walk
+                                           more=[("walk RL+IL", results / "figure3_walk_runs", "hexapod-hexapod")])
             if table:
                 tables[results / "plain_rl_targets.md"] = table
     for name, folder in (("log_std_floor_panel_d", "log_std_floor_runs"), ("random_waves_panel_d", "random_waves_runs")):
