@@ -658,8 +658,9 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
 
     write_rows_csv(out / "figure3.csv", FIGURE3_COLUMNS, rows)
     shown = [(p, v) for p, v in PANELS.items() if p in panels]
-    fig, axes = plt.subplots(1, len(shown), figsize=(4 * len(shown), 3.8 + 0.18 * len(problems)), dpi=100,
-                             sharey=True, squeeze=False)
+    narrow = len(shown) < 3                                   # the title then takes two lines
+    fig, axes = plt.subplots(1, len(shown), figsize=(max(4 * len(shown), 8), 3.8 + 0.18 * (len(problems) + narrow)),
+                             dpi=100, sharey=True, squeeze=False)
     axes = axes[0]
     for ax, (panel, (design, demos)) in zip(axes, shown):
         for method, colour in (("RL+IL", "tab:blue"), ("RL", "tab:red")):
@@ -683,8 +684,8 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
     axes[0].set_ylabel("distance in 200 steps (m)")
-    fig.suptitle(f"mean over seeds, its 95 % bootstrap interval (band) and min-max (dotted); {provenance(rows)}",
-                 fontsize=8)
+    fig.suptitle(f"mean over seeds, its 95 % bootstrap interval (band) and min-max (dotted)"
+                 f"{chr(10) if narrow else '; '}{provenance(rows)}", fontsize=8)
     save_sweep_plot(fig, out / "figure3.png", problems)
 
 
