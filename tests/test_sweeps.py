@@ -26,10 +26,12 @@ def test_committed_tables_and_readme_blocks_are_the_regenerated_ones():
 
 
 def copy_of_repo(tmp_path):
-    """results/*.csv and *.md, README.md and docs/ (if any) under tmp_path."""
-    (tmp_path / "results").mkdir()
-    for p in [*tables.ROOT.glob("results/*.csv"), *tables.ROOT.glob("results/*.md")]:
-        shutil.copy(p, tmp_path / "results" / p.name)
+    """results/*.csv and *.md (and results/figure3_walk/'s, a sweep of its own), README.md and docs/ (if
+    any) under tmp_path."""
+    (tmp_path / "results" / "figure3_walk").mkdir(parents=True)
+    for p in [*tables.ROOT.glob("results/*.csv"), *tables.ROOT.glob("results/*.md"),
+              *tables.ROOT.glob("results/figure3_walk/*.csv"), *tables.ROOT.glob("results/figure3_walk/*.md")]:
+        shutil.copy(p, tmp_path / p.relative_to(tables.ROOT))
     shutil.copy(tables.ROOT / "README.md", tmp_path / "README.md")
     if (tables.ROOT / "docs").exists():
         shutil.copytree(tables.ROOT / "docs", tmp_path / "docs")
