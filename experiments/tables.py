@@ -524,6 +524,52 @@ def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, m
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
+PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, part 9): variant: (what differs, runs)
+    "defaults": ("none: Figure 3's committed runs", ("figure3_runs", "leg_leg_wheel-rl")),
+    "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "*")),
+    "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5)",
+             ("walk_panel_c_runs", "leg_leg_wheel-rl"))}
+
+
+def panel_c_budget_table(root: Path, iters: int = 5) -> str:
+    """Markdown of plain RL on leg_leg_wheel at the budgets of PANEL_C_VARIANTS (runs under
+    root/results): per variant its seeds, the iteration at which each seed first reaches the
+    committed panel (c)'s line (90 % of its best final mean, RL+IL's or RL's, as Figure 3 counts
+    convergence), how many do by iteration `iters`, the final mean and the area under the curve
+    with their 95 % bootstrap CIs, and the final's difference from the defaults and from data16 on
+    the seeds both finished.  "" when the defaults' runs are missing."""
+    results = root / "results"
+    runs = {v: seed_runs(results / folder, name, finished=iters) for v, (_, (folder, name)) in PANEL_C_VARIANTS.items()}
+    rlil_runs = seed_runs(results / "figure3_runs", "leg_leg_wheel-hexapod_car", finished=iters)
+    if not runs["defaults"] or not rlil_runs:
+        return ""
+    line = 0.9 * max(np.mean([rows[iters]["distance_m"] for rows in r.values()]) for r in (runs["defaults"], rlil_runs))
+    final = {v: {s: rows[iters]["distance_m"] for s, rows in r.items()} for v, r in runs.items()}
+
+    def versus(v, base):
+        seeds = sorted(set(final[v]) & set(final[base]))
+        if v == base or not seeds:
+            return ""
+        x, y = [final[v][s] for s in seeds], [final[base][s] for s in seeds]
+        return f"{np.mean(x) - np.mean(y):+.2f} {interval(bootstrap_diff_ci(x, y))}"
+
+    lines = [f"Converged: the first iteration at {line:.2f} m, 90 % of the committed panel (c)'s best final mean.", "",
+             f"| variant | differs from the defaults | seeds | converged at, per seed | converged by {iters} "
+             f"| final (m) [95 % CI] | area under the curve (m) [95 % CI] | final − defaults (m) [95 % CI] "
+             "| final − data16 (m) [95 % CI] | s per run |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for v, (what, _) in PANEL_C_VARIANTS.items():
+        if not runs[v]:
+            continue
+        at = [next((i for i in range(1, iters + 1) if rows[i]["distance_m"] >= line), None) for rows in runs[v].values()]
+        areas = [run_area(rows, iters) for rows in runs[v].values()]
+        seconds = np.mean([sum(r["seconds"] for r in rows) for rows in runs[v].values()])
+        lines.append(f"| {v} | {what} | {len(at)} | {', '.join('never' if i is None else str(i) for i in at)} "
+                     f"| {sum(i is not None for i in at)} of {len(at)} | {np.mean(list(final[v].values())):.2f} "
+                     f"{interval(bootstrap_ci(list(final[v].values())))} | {np.mean(areas):.2f} {interval(bootstrap_ci(areas))} "
+                     f"| {versus(v, 'defaults')} | {versus(v, 'data16')} | {seconds:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str:
     """Markdown of a candidate's runs against a baseline's on the seeds both finished (each folder
     holds <run>-seed<S>/metrics.json): per seed the area under the curve (mean m over iterations
@@ -692,6 +738,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")
+    if (results / "walk_panel_c_runs").is_dir():
+        with made_from(results / "walk_panel_c_runs"):
+            tables[results / "plain_rl_panel_c.md"] = panel_c_budget_table(root)
     if (results / "rounds1_runs").is_dir():
         with made_from(results / "rounds1_runs"):
             tables[results / "rounds1_screen.md"] = rounds1_screen_table(root)

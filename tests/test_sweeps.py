@@ -355,16 +355,44 @@ def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path
     assert len(table) == 5 and tables.same_seed_area_table(tmp_path / "new", tmp_path / "none") == ""
 
 
+def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_path):
+    """tables.panel_c_budget_table on made-up 5-iteration runs: RL+IL's final mean is 20 m, so the
+    line is 18 m; the defaults cross it at iteration 3 on seed 0 only, the walk at iteration 1 on
+    both seeds and data16 never; data16's seed 1 is unfinished and left out of its row."""
+    import json
+    def run(folder, name, seed, curve):
+        (tmp_path / "results" / folder / f"{name}-seed{seed}").mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": d, "seconds": 10.0} for i, d in enumerate(curve)]
+        (tmp_path / "results" / folder / f"{name}-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    for seed in (0, 1):
+        run("figure3_runs", "leg_leg_wheel-hexapod_car", seed, [5, 20, 20, 20, 20, 20])
+        run("walk_panel_c_runs", "leg_leg_wheel-rl", seed, [0, 19, 19, 19, 19, 19])
+    run("figure3_runs", "leg_leg_wheel-rl", 0, [0, 1, 2, 18, 18, 18])
+    run("figure3_runs", "leg_leg_wheel-rl", 1, [0, 1, 2, 17.9, 17.9, 17.9])
+    run("walk_ablation_runs/data16_c", "x", 0, [0, 1, 1, 1, 1, 1])
+    run("walk_ablation_runs/data16_c", "x", 1, [0, 1, 1])
+    table = tables.panel_c_budget_table(tmp_path).splitlines()
+    assert table[0].startswith("Converged: the first iteration at 18.00 m")
+    assert table[4].startswith("| defaults | none: Figure 3's committed runs | 2 | 3, never | 1 of 2 | 17.95 [")
+    assert table[5].startswith("| data16 | ") and "| 1 | never | 0 of 1 | 1.00 [" in table[5]
+    assert table[6].startswith("| walk | ") and "| 2 | 1, 1 | 2 of 2 | 19.00 [" in table[6]
+    assert "| +1.05 [" in table[6] and "| +18.00 [" in table[6] and table[6].endswith("| 60 |")
+    assert len(table) == 7
+    shutil.rmtree(tmp_path / "results" / "figure3_runs")
+    assert tables.panel_c_budget_table(tmp_path) == ""
+
+
 def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
     """`--preset walk` (README: the budget of Figure 3's panel (a)) must be the config every committed
-    run of that budget records, so that the README's command reproduces them; fails when the preset
-    and the runs part (a changed field, a switch left out)."""
+    run of that budget records (leg_leg_wheel's with `--iters 5`), so that the README's commands
+    reproduce them; fails when the preset and the runs part (a changed field, a switch left out)."""
     root = sweeps.ROOT / "results"
     paths = sorted(root.glob("plain_rl_budget_runs/data16_waves_stdmin10/*-seed*/metrics.json"))
     paths += sorted(root.glob("figure3_walk_runs/*-seed*/metrics.json"))
-    assert len(paths) >= 10
-    for path in paths:
+    panel_c = sorted(root.glob("walk_panel_c_runs/*-seed*/metrics.json"))
+    assert len(paths) >= 10 and len(panel_c) >= 10
+    for path in paths + panel_c:
         saved, why = sweeps.read_metrics(path.parent)
         assert why is None, f"{path}: {why}"
-        cfg = saved["cfg"]
-        assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1), path
+        cfg, iters = saved["cfg"], {"iters": 5} if path in panel_c else {}
+        assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1, **iters), path
