@@ -528,7 +528,9 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "defaults": ("none: Figure 3's committed runs", ("figure3_runs", "leg_leg_wheel-rl")),
     "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "*")),
     "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5)",
-             ("walk_panel_c_runs", "leg_leg_wheel-rl"))}
+             ("walk_panel_c_runs", "leg_leg_wheel-rl")),
+    "walk_mix05": ("the walk with half of line 2's episodes splines (--random-wave-share 0.5)",
+                   ("panel_c_candidates/walk_mix05", "*"))}
 
 
 def panel_c_budget_table(root: Path, iters: int = 5) -> str:

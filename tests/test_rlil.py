@@ -256,11 +256,14 @@ def test_entropy_penalty_makes_the_policy_more_certain_on_demo_observations(car_
 
 def test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off():
     """Line 2's actions: the paper's splines of std random_action_std, or with --random-waves the
-    sine waves of sim2d.random_wave_actions, from the same generator."""
+    sine waves of sim2d.random_wave_actions, from the same generator; with --random-wave-share 0.25
+    waves in the first quarter of the episodes and splines in the rest."""
     graph = sim2d.design_graph("hexapod")
-    for waves, draw in ((False, lambda rng, n, T: sim2d.random_spline_actions(rng, n, graph.action_dim, T, std=0.5)),
-                        (True, lambda rng, n, T: sim2d.random_wave_actions(rng, n, graph.action_dim, T))):
-        cfg = tiny(random_waves=waves, random_action_std=0.5)
+    splines = lambda rng, n, T: sim2d.random_spline_actions(rng, n, graph.action_dim, T, std=0.5)   # noqa: E731
+    waves = lambda rng, n, T: sim2d.random_wave_actions(rng, n, graph.action_dim, T)                # noqa: E731
+    quarter = lambda rng, n, T: np.concatenate([waves(rng, n // 4, T), splines(rng, n - n // 4, T)])  # noqa: E731
+    for on, share, draw in ((False, 1.0, splines), (True, 1.0, waves), (True, 0.25, quarter)):
+        cfg = tiny(random_waves=on, random_wave_share=share, random_action_std=0.5)
         data = rlil.collect_random_rollouts("hexapod", cfg, np.random.default_rng(4))
         expected = draw(np.random.default_rng(4), cfg.random_episodes, cfg.episode_steps)
         assert data.actions.shape == expected.shape
