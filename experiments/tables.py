@@ -101,6 +101,11 @@ def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
 
 
 
+# Figure 3's panels at other budgets, each a sweep of its own in results/<folder>/: panel (a) at
+# --preset walk (15 iterations), panel (c) at the walk with --random-wave-share 0.5 (5 iterations)
+SWEEPS_OF_THEIR_OWN = ("figure3_walk", "figure3_mix_c")
+
+
 def paired_claims(rows: list[dict]) -> str:
     """summarize_claims of a sweep's rows on the seeds that both methods finished (reached the
     rows' last iteration): a sweep still running compares like with like."""
@@ -704,12 +709,13 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         tables[results / "figure3.md"] = figure3_table(rows)
         tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
                                                                  len({r["seed"] for r in rows}))
-    walk = results / "figure3_walk" / "figure3.csv"       # panel (a) at --preset walk: train.py --figure3 --collect
-    if walk.exists():
-        with made_from(walk):
-            rows = read_rows_csv(walk)
-            tables[walk.with_suffix(".md")] = figure3_table(rows)
-            tables[walk.parent / "figure3_claims.md"] = paired_claims(rows)
+    for sweep in SWEEPS_OF_THEIR_OWN:                     # train.py --figure3 --collect ... --out results/<sweep>
+        walk = results / sweep / "figure3.csv"
+        if walk.exists():
+            with made_from(walk):
+                rows = read_rows_csv(walk)
+                tables[walk.with_suffix(".md")] = figure3_table(rows)
+                tables[walk.parent / "figure3_claims.md"] = paired_claims(rows)
     if (results / "stability_confirm.csv").exists():     # the README's main command: panel (d), RL+IL, today's defaults
         with made_from(results / "stability_confirm.csv"):
             main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")

@@ -26,11 +26,13 @@ def test_committed_tables_and_readme_blocks_are_the_regenerated_ones():
 
 
 def copy_of_repo(tmp_path):
-    """results/*.csv and *.md (and results/figure3_walk/'s, a sweep of its own), README.md and docs/ (if
-    any) under tmp_path."""
-    (tmp_path / "results" / "figure3_walk").mkdir(parents=True)
-    for p in [*tables.ROOT.glob("results/*.csv"), *tables.ROOT.glob("results/*.md"),
-              *tables.ROOT.glob("results/figure3_walk/*.csv"), *tables.ROOT.glob("results/figure3_walk/*.md")]:
+    """results/*.csv and *.md (and those of tables.SWEEPS_OF_THEIR_OWN, each a folder of results/),
+    README.md and docs/ (if any) under tmp_path."""
+    paths = [*tables.ROOT.glob("results/*.csv"), *tables.ROOT.glob("results/*.md")]
+    for sweep in tables.SWEEPS_OF_THEIR_OWN:
+        (tmp_path / "results" / sweep).mkdir(parents=True)
+        paths += [*tables.ROOT.glob(f"results/{sweep}/*.csv"), *tables.ROOT.glob(f"results/{sweep}/*.md")]
+    for p in paths:
         shutil.copy(p, tmp_path / p.relative_to(tables.ROOT))
     shutil.copy(tables.ROOT / "README.md", tmp_path / "README.md")
     if (tables.ROOT / "docs").exists():
@@ -384,15 +386,17 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
 
 def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
     """`--preset walk` (README: the budget of Figure 3's panel (a)) must be the config every committed
-    run of that budget records (leg_leg_wheel's with `--iters 5`), so that the README's commands
+    run of that budget records, with the flags its folder names, so that the docs' commands
     reproduce them; fails when the preset and the runs part (a changed field, a switch left out)."""
     root = sweeps.ROOT / "results"
-    paths = sorted(root.glob("plain_rl_budget_runs/data16_waves_stdmin10/*-seed*/metrics.json"))
-    paths += sorted(root.glob("figure3_walk_runs/*-seed*/metrics.json"))
-    panel_c = sorted(root.glob("walk_panel_c_runs/*-seed*/metrics.json"))
-    assert len(paths) >= 10 and len(panel_c) >= 10
-    for path in paths + panel_c:
-        saved, why = sweeps.read_metrics(path.parent)
-        assert why is None, f"{path}: {why}"
-        cfg, iters = saved["cfg"], {"iters": 5} if path in panel_c else {}
-        assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1, **iters), path
+    folders = {"plain_rl_budget_runs/data16_waves_stdmin10": {}, "figure3_walk_runs": {},
+               "walk_panel_c_runs": {"iters": 5}, "panel_c_candidates/walk_mix05": {"iters": 5, "random_wave_share": 0.5},
+               "panel_a_candidates/walk_avx512": {}, "panel_a_candidates/walk_mix05": {"random_wave_share": 0.5}}
+    for folder, flags in folders.items():
+        paths = sorted(root.glob(f"{folder}/*-seed*/metrics.json"))
+        assert len(paths) >= (10 if folder in ("figure3_walk_runs", "walk_panel_c_runs") else 0), folder
+        for path in paths:
+            saved, why = sweeps.read_metrics(path.parent)
+            assert why is None, f"{path}: {why}"
+            cfg = saved["cfg"]
+            assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1, **flags), path
