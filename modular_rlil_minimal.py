@@ -284,12 +284,13 @@ def new_seed(rng: np.random.Generator) -> int:
 def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
     """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over an
     episode (the paper's 100 steps: cfg.episode_steps); with cfg.random_waves (not the paper, off by
-    default) sine waves (sim2d.random_wave_actions) in the first cfg.random_wave_share of them."""
-    graph = sim2d.design_graph(design)
-    E, waves = cfg.random_episodes, round(cfg.random_wave_share * cfg.random_episodes) if cfg.random_waves else 0
-    actions = np.concatenate([sim2d.random_wave_actions(rng, waves, graph.action_dim, cfg.episode_steps),
-                              sim2d.random_spline_actions(rng, E - waves, graph.action_dim, cfg.episode_steps,
-                                                          std=cfg.random_action_std)])    # (E, T, A)
+    default) sine waves (sim2d.random_wave_actions) in the first cfg.random_wave_share of the
+    episodes, splines in the rest."""
+    graph, E = sim2d.design_graph(design), cfg.random_episodes
+    waves = round(cfg.random_wave_share * E) if cfg.random_waves else 0        # episodes of sine waves
+    actions = np.concatenate([                                                 # (E, T, A)
+        sim2d.random_wave_actions(rng, waves, graph.action_dim, cfg.episode_steps),
+        sim2d.random_spline_actions(rng, E - waves, graph.action_dim, cfg.episode_steps, std=cfg.random_action_std)])
     return Trajectories.from_episodes(sim2d.simulate(graph, lambda obs, s, t: actions[:, t], cfg.random_episodes,
                                                      cfg.episode_steps, seed=new_seed(rng)))
 

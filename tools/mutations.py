@@ -182,10 +182,10 @@ MUTATIONS = [
      "rows = sample_efficiency_rows(runs)",
      "tests/test_ppo.py::test_sample_efficiency_runs_every_method_and_writes_plot_csv_and_summary"),
     ("line 2 ignores --random-waves (splines always)", "modular_rlil_minimal.py",
-     "round(cfg.random_wave_share * cfg.random_episodes) if cfg.random_waves else 0", "0",
+     "round(cfg.random_wave_share * E) if cfg.random_waves else 0", "0",
      "tests/test_rlil.py::test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off"),
     ("line 2 ignores --random-wave-share (waves in every episode)", "modular_rlil_minimal.py",
-     "round(cfg.random_wave_share * cfg.random_episodes) if", "cfg.random_episodes if",
+     "round(cfg.random_wave_share * E) if", "E if",
      "tests/test_rlil.py::test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off"),
 ]
 
