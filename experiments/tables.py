@@ -710,12 +710,12 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         tables[results / "figure3_claims.md"] = summarize_claims(rows, max(r["iteration"] for r in rows),
                                                                  len({r["seed"] for r in rows}))
     for sweep in SWEEPS_OF_THEIR_OWN:                     # train.py --figure3 --collect ... --out results/<sweep>
-        walk = results / sweep / "figure3.csv"
-        if walk.exists():
-            with made_from(walk):
-                rows = read_rows_csv(walk)
-                tables[walk.with_suffix(".md")] = figure3_table(rows)
-                tables[walk.parent / "figure3_claims.md"] = paired_claims(rows)
+        path = results / sweep / "figure3.csv"
+        if path.exists():
+            with made_from(path):
+                rows = read_rows_csv(path)
+                tables[path.with_suffix(".md")] = figure3_table(rows)
+                tables[path.parent / "figure3_claims.md"] = paired_claims(rows)
     if (results / "stability_confirm.csv").exists():     # the README's main command: panel (d), RL+IL, today's defaults
         with made_from(results / "stability_confirm.csv"):
             main = [{k: v for k, v in r.items() if k != "variant"} for r in read_rows_csv(results / "stability_confirm.csv")
