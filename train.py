@@ -27,11 +27,13 @@ import argparse
 import ast
 import dataclasses
 import inspect
+import os
 import shlex
 import shutil
 import signal
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
@@ -52,23 +54,26 @@ from gnn import GNNConfig
 # ----------------------------------------------------------------------------
 # Ctrl-C and SIGTERM
 # ----------------------------------------------------------------------------
-PENDING_SIGNAL = []   # a Ctrl-C or SIGTERM that arrived inside pymunk, raised at the next log line or checkpoint
-
-
 def on_signal(signum, frame) -> None:
-    """SIGINT, SIGTERM: raise Interrupted, except inside pymunk, whose cffi callbacks (freeing bodies)
-    would print the exception and swallow it; there it waits in PENDING_SIGNAL for `raise_pending_signal`."""
-    if frame is not None and "pymunk" in frame.f_code.co_filename:
-        PENDING_SIGNAL.append(signum)
+    """SIGINT, SIGTERM: raise Interrupted, except where an exception would be swallowed: inside pymunk
+    (its cffi callbacks, freeing bodies, print it and go on) and inside an import (a lazy one, such as
+    numpy.random's, can lose it and the run ends as if no signal came).  There the same signal is sent
+    again 50 ms later, until it lands in the run's own code."""
+    if swallowed_there(frame):
+        again = threading.Timer(0.05, os.kill, (os.getpid(), signum))
+        again.daemon = True
+        again.start()
         return
     raise Interrupted(signum)
 
 
-def raise_pending_signal() -> None:
-    if PENDING_SIGNAL:
-        signum = PENDING_SIGNAL[0]
-        PENDING_SIGNAL.clear()
-        raise Interrupted(signum)
+def swallowed_there(frame) -> bool:
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if "pymunk" in name or name.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 # ----------------------------------------------------------------------------
@@ -83,11 +88,7 @@ def run(cfg, out: Path, resume: bool = False, force: bool = False, log=None,
     a UsageError, and a run that fails before its first checkpoint leaves no
     directory behind (one that existed before is left as it was).
     """
-    print_line = log or rlil.ProgressLog()
-
-    def say(message: str) -> None:                 # a signal that waited inside pymunk is raised here
-        raise_pending_signal()
-        print_line(message)
+    say = log or rlil.ProgressLog()
     try:
         cfg = (ppo_lib if is_ppo(cfg) else rlil).validate_config(cfg)
     except ValueError as e:
@@ -124,7 +125,6 @@ def train_in(cfg, out: Path, resume: bool, force: bool, say, cache_dir) -> list[
     durations, last = [], {"t": time.perf_counter(), "iteration": run.iteration if run else 0}
 
     def on_iteration(run) -> None:          # after iteration 0 and every later one (PPO: every evaluation)
-        raise_pending_signal()
         write_or_say(out / "checkpoint.pt", lambda: save_checkpoint(out, run))
         write_or_say(out / "metrics.json", lambda: save_metrics(out, run.cfg, run.metrics))
         write_or_say(out / "curve.png", lambda: save_curve(out, run.cfg, run.metrics))

@@ -102,6 +102,23 @@ def test_sigterm_before_the_first_checkpoint_leaves_no_folder(tmp_path):
     assert "nothing was kept" in err and not out.exists()
 
 
+def test_a_signal_inside_an_import_arrives_after_it(tmp_path, monkeypatch):
+    """An exception raised inside an import can be lost (numpy.random's lazy import swallowed a SIGTERM,
+    and the run ended with status 0): the signal waits until the import is done, then stops the run."""
+    (tmp_path / "module_being_imported.py").write_text(
+        "import os, signal, time\nos.kill(os.getpid(), signal.SIGTERM)\ntime.sleep(0.2)\nFINISHED = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    before = signal.signal(signal.SIGTERM, train.on_signal)
+    try:
+        with pytest.raises(run_folders.Interrupted):
+            import module_being_imported    # noqa: F401
+            time.sleep(5)
+    finally:
+        signal.signal(signal.SIGTERM, before)
+        module = sys.modules.pop("module_being_imported", None)
+    assert module is not None and module.FINISHED
+
+
 def test_a_full_disk_keeps_the_last_checkpoint_and_says_how_to_resume(tmp_path, capsys, monkeypatch):
     """torch.save fails at iteration 1's checkpoint (as on a full disk): one line, exit 1, the checkpoint
     of iteration 0 intact, and the printed command finishes the run once there is room."""

@@ -7,7 +7,7 @@ directory, the one line is changed there (never here), and only that test is
 run.  The table it prints (and writes to results/mutations.md, which
 docs/cli.md shows) says whether every test went red.
 
-    python tools/mutations.py            # all 49, about 9 minutes on 2 cores busy with two training runs
+    python tools/mutations.py            # all 50, about 9 minutes on 2 cores busy with two training runs
     python tools/mutations.py --only 3   # one entry, by number
 """
 from __future__ import annotations
@@ -164,6 +164,9 @@ MUTATIONS = [
     ("SIGTERM kills a run without a word", "train.py",
      "        signal.signal(signal.SIGTERM, on_signal)", "        pass",
      "tests/test_faults.py::test_sigterm_before_the_first_checkpoint_leaves_no_folder"),
+    ("a signal inside an import is raised there, where it can be lost", "train.py",
+     "    if swallowed_there(frame):", "    if frame is not None and \"pymunk\" in frame.f_code.co_filename:",
+     "tests/test_faults.py::test_a_signal_inside_an_import_arrives_after_it"),
     ("a failed write is a traceback, not the resume line", "experiments/run_folders.py",
      "    except (OSError, RuntimeError) as e:\n        reason", "    except ZeroDivisionError as e:\n        reason",
      "tests/test_faults.py::test_a_full_disk_keeps_the_last_checkpoint_and_says_how_to_resume"),
