@@ -25,8 +25,7 @@ first model also sees the clone's roll-outs (`--clone-data`,
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
 Algorithm 1.  One more, off by default and on in `--preset walk`: `--random-waves`
-(line 2's actions as sine waves, `sim2d.random_wave_actions`, in the share
-`--random-wave-share` of its episodes).  Mechanisms that
+(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Mechanisms that
 were measured and did not help are not in the code; docs/history/ has their results.
 
 The command line is train.py:
@@ -149,9 +148,6 @@ class Config:
     """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
     episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
     of resting at a limit; off = the paper"""
-    random_wave_share: float = 1.0
-    """with random_waves: the share of line 2's episodes drawn as waves, the rest the paper's splines
-    (a mix shows a wheel held at full speed as well as a leg that swings); 0-1"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -237,9 +233,8 @@ def validate_config(cfg: Config) -> Config:
     for design in cfg.demos:
         demo_lib.check_demonstrable(sim2d.design_graph(design))
     check_ranges(cfg, AT_LEAST)
-    if cfg.lr_drop > 1 or cfg.il_decay > 1 or cfg.random_wave_share > 1:
-        raise ValueError(f"lr_drop, il_decay and random_wave_share must be at most 1, got {cfg.lr_drop}, "
-                         f"{cfg.il_decay} and {cfg.random_wave_share}")
+    if cfg.lr_drop > 1 or cfg.il_decay > 1:
+        raise ValueError(f"lr_drop and il_decay must be at most 1, got {cfg.lr_drop} and {cfg.il_decay}")
     if cfg.horizon > min(cfg.episode_steps, cfg.eval_steps):
         raise ValueError(f"horizon ({cfg.horizon}) must not exceed episode_steps ({cfg.episode_steps}) "
                          f"or eval_steps ({cfg.eval_steps})")
@@ -284,13 +279,13 @@ def new_seed(rng: np.random.Generator) -> int:
 def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
     """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over an
     episode (the paper's 100 steps: cfg.episode_steps); with cfg.random_waves (not the paper, off by
-    default) sine waves (sim2d.random_wave_actions) in the first cfg.random_wave_share of the
-    episodes, splines in the rest."""
-    graph, E = sim2d.design_graph(design), cfg.random_episodes
-    waves = round(cfg.random_wave_share * E) if cfg.random_waves else 0        # episodes of sine waves
-    actions = np.concatenate([                                                 # (E, T, A)
-        sim2d.random_wave_actions(rng, waves, graph.action_dim, cfg.episode_steps),
-        sim2d.random_spline_actions(rng, E - waves, graph.action_dim, cfg.episode_steps, std=cfg.random_action_std)])
+    default) sine waves instead (sim2d.random_wave_actions)."""
+    graph = sim2d.design_graph(design)
+    if cfg.random_waves:
+        actions = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps)
+    else:
+        actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
+                                              std=cfg.random_action_std)              # (E, T, A)
     return Trajectories.from_episodes(sim2d.simulate(graph, lambda obs, s, t: actions[:, t], cfg.random_episodes,
                                                      cfg.episode_steps, seed=new_seed(rng)))
 

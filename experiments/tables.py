@@ -102,7 +102,8 @@ def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
 
 
 # Figure 3's panels at other budgets, each a sweep of its own in results/<folder>/: panel (a) at
-# --preset walk (15 iterations), panel (c) at the walk with --random-wave-share 0.5 (5 iterations)
+# --preset walk (15 iterations), panel (c) at the walk with half of line 2's episodes splines (5 iterations;
+# --random-wave-share 0.5, a switch measured and removed: commit 43d953d runs it)
 SWEEPS_OF_THEIR_OWN = ("figure3_walk", "figure3_mix_c")
 
 
@@ -534,7 +535,7 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "*")),
     "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5)",
              ("walk_panel_c_runs", "leg_leg_wheel-rl")),
-    "walk_mix05": ("the walk with half of line 2's episodes splines (--random-wave-share 0.5)",
+    "walk_mix05": ("the walk with half of line 2's episodes splines (--random-wave-share 0.5, since removed)",
                    ("panel_c_candidates/walk_mix05", "*"))}
 
 

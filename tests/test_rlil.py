@@ -256,14 +256,12 @@ def test_entropy_penalty_makes_the_policy_more_certain_on_demo_observations(car_
 
 def test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off():
     """Line 2's actions: the paper's splines of std random_action_std, or with --random-waves the
-    sine waves of sim2d.random_wave_actions, from the same generator; with --random-wave-share 0.25
-    waves in the first quarter of the episodes and splines in the rest."""
+    sine waves of sim2d.random_wave_actions, from the same generator."""
     graph = sim2d.design_graph("hexapod")
     splines = lambda rng, n, T: sim2d.random_spline_actions(rng, n, graph.action_dim, T, std=0.5)   # noqa: E731
     waves = lambda rng, n, T: sim2d.random_wave_actions(rng, n, graph.action_dim, T)                # noqa: E731
-    quarter = lambda rng, n, T: np.concatenate([waves(rng, n // 4, T), splines(rng, n - n // 4, T)])  # noqa: E731
-    for on, share, draw in ((False, 1.0, splines), (True, 1.0, waves), (True, 0.25, quarter)):
-        cfg = tiny(random_waves=on, random_wave_share=share, random_action_std=0.5)
+    for on, draw in ((False, splines), (True, waves)):
+        cfg = tiny(random_waves=on, random_action_std=0.5)
         data = rlil.collect_random_rollouts("hexapod", cfg, np.random.default_rng(4))
         expected = draw(np.random.default_rng(4), cfg.random_episodes, cfg.episode_steps)
         assert data.actions.shape == expected.shape
@@ -542,11 +540,12 @@ def test_a_run_written_before_a_removal_loads_only_if_it_left_the_removed_switch
     their off value the run used today's algorithm and loads; switched on, it is refused by name."""
     d = json.loads(json.dumps(run_folders.config_to_dict(rlil.Config())))
     old = {**d, "ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "critic": False,
-           "critic_gamma": 0.99, "critic_lambda": 0.95, "critic_steps": 4,
+           "critic_gamma": 0.99, "critic_lambda": 0.95, "critic_steps": 4, "random_wave_share": 1.0,
            "gnn": {**d["gnn"], "contact_features": False}}
     assert run_folders.config_from_dict(old) == rlil.Config()
     for changed, name in (({"gnn": {**d["gnn"], "contact_features": True}}, "gnn.contact_features"),
-                          ({"ensemble": 3}, "ensemble"), ({"critic": True, "critic_gamma": 0.99}, "critic")):
+                          ({"ensemble": 3}, "ensemble"), ({"critic": True, "critic_gamma": 0.99}, "critic"),
+                          ({"random_waves": True, "random_wave_share": 0.5}, "random_wave_share")):
         with pytest.raises(run_folders.UsageError, match=name):
             run_folders.config_from_dict({**d, **changed})
 

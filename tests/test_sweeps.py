@@ -390,8 +390,7 @@ def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
     reproduce them; fails when the preset and the runs part (a changed field, a switch left out)."""
     root = sweeps.ROOT / "results"
     folders = {"plain_rl_budget_runs/data16_waves_stdmin10": {}, "figure3_walk_runs": {},
-               "walk_panel_c_runs": {"iters": 5}, "panel_c_candidates/walk_mix05": {"iters": 5, "random_wave_share": 0.5},
-               "panel_a_candidates/walk_avx512": {}, "panel_a_candidates/walk_mix05": {"random_wave_share": 0.5}}
+               "walk_panel_c_runs": {"iters": 5}, "panel_a_candidates/walk_avx512": {}}
     for folder, flags in folders.items():
         paths = sorted(root.glob(f"{folder}/*-seed*/metrics.json"))
         assert len(paths) >= (10 if folder in ("figure3_walk_runs", "walk_panel_c_runs") else 0), folder
