@@ -739,6 +739,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                                            more=[("walk RL+IL", results / "figure3_walk_runs", "hexapod-hexapod")])
             if table:
                 tables[results / "plain_rl_targets.md"] = table
+    if (results / "panel_a_candidates").is_dir():        # the panel (c) mix's check on the hexapod, one CPU (AVX512)
+        with made_from(results / "panel_a_candidates"):
+            table = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_mix05",), baseline="walk_avx512")
+            if table:
+                tables[results / "plain_rl_panel_a_mix.md"] = table
     for name, folder in (("log_std_floor_panel_d", "log_std_floor_runs"), ("random_waves_panel_d", "random_waves_runs")):
         candidate = results / folder / "panel_d_rlil"        # the main command with one switch, against its defaults
         if candidate.is_dir():
