@@ -505,6 +505,29 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
+def walk_rlil_ablation_table(results: Path) -> str:
+    """Markdown of the walk preset's switches on the hexapod's RL+IL (issue #34, parts 8 and 10): per
+    seed the distance at iteration 15 at the walk and at 16x the data alone (data16), each pair on one
+    CPU (the walk's run from walk_ablation_runs/walk_rlil_avx512 where there is one, else Figure 3's
+    walk run), then the means with their 95 % bootstrap CIs and walk − data16 with its CI and
+    verdict.  "" when no seed has both."""
+    walk = {**seed_runs(results / "figure3_walk_runs", "hexapod-hexapod", finished=15),
+            **seed_runs(results / "walk_ablation_runs" / "walk_rlil_avx512", finished=15)}
+    data16 = seed_runs(results / "walk_ablation_runs" / "data16_rlil", finished=15)
+    seeds = sorted(set(walk) & set(data16))
+    if not seeds:
+        return ""
+    x, y = [walk[s][15]["distance_m"] for s in seeds], [data16[s][15]["distance_m"] for s in seeds]
+    diff = bootstrap_diff_ci(x, y)
+    cpu = {s: json.loads((results / "walk_ablation_runs" / "data16_rlil" / f"hexapod-hexapod-seed{s}" / "metrics.json")
+                         .read_text())["config"]["versions"]["cpu_capability"] for s in seeds}
+    lines = ["| seed | CPU capability | walk at 15 (m) | data16 at 15 (m) | walk − data16 (m) |", "|---|---|---|---|---|"]
+    lines += [f"| {s} | {cpu[s]} | {a:.2f} | {b:.2f} | {a - b:+.2f} |" for s, a, b in zip(seeds, x, y)]
+    lines.append(f"| mean of {len(seeds)} | | {np.mean(x):.2f} {interval(bootstrap_ci(x))} | {np.mean(y):.2f} "
+                 f"{interval(bootstrap_ci(y))} | {np.mean(x) - np.mean(y):+.2f} {interval(diff)}, {verdict(diff)} |")
+    return "\n".join(lines) + "\n"
+
+
 def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, more=()) -> str:
     """Markdown of issue #34's other marks on the 15-iteration hexapod runs, per variant of
     `folder`/<variant>/*-seed*/metrics.json (finished runs), then per (label, folder, run name) of
@@ -739,6 +762,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                                            more=[("walk RL+IL", results / "figure3_walk_runs", "hexapod-hexapod")])
             if table:
                 tables[results / "plain_rl_targets.md"] = table
+    if (results / "walk_ablation_runs" / "data16_rlil").is_dir():
+        with made_from(results / "walk_ablation_runs"):
+            table = walk_rlil_ablation_table(results)
+            if table:
+                tables[results / "walk_rlil_ablation.md"] = table
     if (results / "panel_a_candidates").is_dir():        # the panel (c) mix's check on the hexapod, one CPU (AVX512)
         with made_from(results / "panel_a_candidates"):
             table = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_mix05",), baseline="walk_avx512")

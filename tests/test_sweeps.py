@@ -384,6 +384,27 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     assert tables.panel_c_budget_table(tmp_path) == ""
 
 
+def test_the_walk_rlil_ablation_pairs_each_seed_with_its_own_cpus_walk_run(tmp_path):
+    """tables.walk_rlil_ablation_table on made-up 15-iteration runs: seed 0's walk run comes from
+    Figure 3's walk runs, seed 1's from walk_rlil_avx512, which replaces Figure 3's where both exist;
+    seed 2 has no data16 run and is left out."""
+    import json
+    def run(folder, seed, final, cpu="AVX2"):
+        (tmp_path / folder / f"hexapod-hexapod-seed{seed}").mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": final if i == 15 else 1.0} for i in range(16)]
+        (tmp_path / folder / f"hexapod-hexapod-seed{seed}" / "metrics.json").write_text(
+            json.dumps({"iterations": rows, "config": {"versions": {"cpu_capability": cpu}}}))
+    for seed, final in ((0, 20.0), (1, 99.0), (2, 21.0)):
+        run("figure3_walk_runs", seed, final)
+    run("walk_ablation_runs/walk_rlil_avx512", 1, 18.0, "AVX512")
+    run("walk_ablation_runs/data16_rlil", 0, 19.0)
+    run("walk_ablation_runs/data16_rlil", 1, 19.0, "AVX512")
+    table = tables.walk_rlil_ablation_table(tmp_path).splitlines()
+    assert table[2:4] == ["| 0 | AVX2 | 20.00 | 19.00 | +1.00 |", "| 1 | AVX512 | 18.00 | 19.00 | -1.00 |"]
+    assert table[4].startswith("| mean of 2 | | 19.00 [") and "| +0.00 [" in table[4] and len(table) == 5
+    assert tables.walk_rlil_ablation_table(tmp_path / "nothing") == ""
+
+
 def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
     """`--preset walk` (README: the budget of Figure 3's panel (a)) must be the config every committed
     run of that budget records, with the flags its folder names, so that the docs' commands
