@@ -68,6 +68,7 @@ def on_signal(signum, frame) -> None:
 
 
 def swallowed_there(frame) -> bool:
+    """Whether `frame` or a caller of it is pymunk's code or the import machinery."""
     while frame is not None:
         name = frame.f_code.co_filename
         if "pymunk" in name or name.startswith("<frozen importlib"):
