@@ -560,7 +560,12 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5)",
              ("walk_panel_c_runs", "leg_leg_wheel-rl")),
     "walk_mix05": ("the walk with half of line 2's episodes splines (--random-wave-share 0.5, since removed)",
-                   ("panel_c_candidates/walk_mix05", "*"))}
+                   ("panel_c_candidates/walk_mix05", "*")),
+    "walk_amd": ("the walk again, on the AMD AVX512 machine of the row below: its ablation row",
+                 ("panel_c_candidates/walk_amd", "*")),
+    "walk_wheel_splines": ("the walk with the wheels' line-2 actions splines, the legs' waves (--wheel-splines on)",
+                           ("panel_c_candidates/walk_wheel_splines", "*"))}
+PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_budget_table(root: Path, iters: int = 5) -> str:
@@ -569,7 +574,8 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
     committed panel (c)'s line (90 % of its best final mean, RL+IL's or RL's, as Figure 3 counts
     convergence), how many do by iteration `iters`, the final mean and the area under the curve
     with their 95 % bootstrap CIs, and the final's difference from the defaults and from data16 on
-    the seeds both finished.  "" when the defaults' runs are missing."""
+    the seeds both finished, and a candidate's from its ablation row (PANEL_C_PAIRS).  "" when the
+    defaults' runs are missing."""
     results = root / "results"
     runs = {v: seed_runs(results / folder, name, finished=iters) for v, (_, (folder, name)) in PANEL_C_VARIANTS.items()}
     rlil_runs = seed_runs(results / "figure3_runs", "leg_leg_wheel-hexapod_car", finished=iters)
@@ -588,7 +594,8 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
     lines = [f"Converged: the first iteration at {line:.2f} m, 90 % of the committed panel (c)'s best final mean.", "",
              f"| variant | differs from the defaults | seeds | converged at, per seed | converged by {iters} "
              f"| final (m) [95 % CI] | area under the curve (m) [95 % CI] | final − defaults (m) [95 % CI] "
-             "| final − data16 (m) [95 % CI] | s per run |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| final − data16 (m) [95 % CI] | final − its ablation row (m) [95 % CI] | s per run |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for v, (what, _) in PANEL_C_VARIANTS.items():
         if not runs[v]:
             continue
@@ -598,7 +605,8 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
         lines.append(f"| {v} | {what} | {len(at)} | {', '.join('never' if i is None else str(i) for i in at)} "
                      f"| {sum(i is not None for i in at)} of {len(at)} | {np.mean(list(final[v].values())):.2f} "
                      f"{interval(bootstrap_ci(list(final[v].values())))} | {np.mean(areas):.2f} {interval(bootstrap_ci(areas))} "
-                     f"| {versus(v, 'defaults')} | {versus(v, 'data16')} | {seconds:.0f} |")
+                     f"| {versus(v, 'defaults')} | {versus(v, 'data16')} "
+                     f"| {versus(v, PANEL_C_PAIRS[v]) if v in PANEL_C_PAIRS and runs[PANEL_C_PAIRS[v]] else ''} | {seconds:.0f} |")
     return "\n".join(lines) + "\n"
 
 

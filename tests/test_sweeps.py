@@ -360,7 +360,8 @@ def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path
 def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_path):
     """tables.panel_c_budget_table on made-up 5-iteration runs: RL+IL's final mean is 20 m, so the
     line is 18 m; the defaults cross it at iteration 3 on seed 0 only, the walk at iteration 1 on
-    both seeds and data16 never; data16's seed 1 is unfinished and left out of its row."""
+    both seeds and data16 never; data16's seed 1 is unfinished and left out of its row; a
+    candidate (walk_wheel_splines) is compared with its ablation row (walk_amd)."""
     import json
     def run(folder, name, seed, curve):
         (tmp_path / "results" / folder / f"{name}-seed{seed}").mkdir(parents=True)
@@ -373,13 +374,19 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     run("figure3_runs", "leg_leg_wheel-rl", 1, [0, 1, 2, 17.9, 17.9, 17.9])
     run("walk_ablation_runs/data16_c", "x", 0, [0, 1, 1, 1, 1, 1])
     run("walk_ablation_runs/data16_c", "x", 1, [0, 1, 1])
+    for seed in (0, 1):
+        run("panel_c_candidates/walk_amd", "x", seed, [0, 1, 1, 1, 1, 17])
+        run("panel_c_candidates/walk_wheel_splines", "x", seed, [0, 1, 1, 1, 18, 18 + seed])
     table = tables.panel_c_budget_table(tmp_path).splitlines()
     assert table[0].startswith("Converged: the first iteration at 18.00 m")
     assert table[4].startswith("| defaults | none: Figure 3's committed runs | 2 | 3, never | 1 of 2 | 17.95 [")
     assert table[5].startswith("| data16 | ") and "| 1 | never | 0 of 1 | 1.00 [" in table[5]
     assert table[6].startswith("| walk | ") and "| 2 | 1, 1 | 2 of 2 | 19.00 [" in table[6]
-    assert "| +1.05 [" in table[6] and "| +18.00 [" in table[6] and table[6].endswith("| 60 |")
-    assert len(table) == 7
+    assert "| +1.05 [" in table[6] and "| +18.00 [" in table[6] and table[6].endswith("] |  | 60 |")
+    assert table[7].startswith("| walk_amd | ") and "| 0 of 2 |" in table[7] and table[7].endswith("] |  | 60 |")
+    assert table[8].startswith("| walk_wheel_splines | ") and "| 4, 4 | 2 of 2 | 18.50 [" in table[8]
+    assert table[8].endswith("| +1.50 [1.00, 2.00] | 60 |")
+    assert len(table) == 9
     shutil.rmtree(tmp_path / "results" / "figure3_runs")
     assert tables.panel_c_budget_table(tmp_path) == ""
 
