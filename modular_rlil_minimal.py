@@ -148,9 +148,6 @@ class Config:
     """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
     episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
     of resting at a limit; off = the paper"""
-    wheel_splines: bool = False
-    """with random_waves: the wheels keep the paper's splines and only the legs swing (a wave's mean
-    is zero, so a wheel on waves never drives far); no effect on designs without wheels"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -243,8 +240,6 @@ def validate_config(cfg: Config) -> Config:
                          f"or eval_steps ({cfg.eval_steps})")
     if cfg.batch > cfg.buffer_size:
         raise ValueError(f"batch ({cfg.batch}) must not exceed buffer_size ({cfg.buffer_size}): a batch draws from B")
-    if cfg.wheel_splines and not cfg.random_waves:
-        raise ValueError("wheel_splines keeps the wheels on splines while the legs swing: it needs random_waves on")
     if cfg.il_window > cfg.demo_steps:
         raise ValueError(f"il_window ({cfg.il_window}) must not exceed demo_steps ({cfg.demo_steps})")
     return cfg
@@ -284,15 +279,10 @@ def new_seed(rng: np.random.Generator) -> int:
 def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
     """Algorithm 1 line 2 (Sec. III-B): 10 N(0, std^2) knots per DoF joined by a spline over an
     episode (the paper's 100 steps: cfg.episode_steps); with cfg.random_waves (not the paper, off by
-    default) sine waves instead (sim2d.random_wave_actions), and with cfg.wheel_splines the wheels'
-    columns splines again, drawn after the waves."""
+    default) sine waves instead (sim2d.random_wave_actions)."""
     graph = sim2d.design_graph(design)
     if cfg.random_waves:
         actions = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps)
-        wheels = graph.n_wheels * sim2d.WHEEL_ACT_DIM                         # the last columns of an action
-        if cfg.wheel_splines and wheels:
-            actions[..., -wheels:] = sim2d.random_spline_actions(rng, cfg.random_episodes, wheels, cfg.episode_steps,
-                                                                 std=cfg.random_action_std)
     else:
         actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
                                               std=cfg.random_action_std)              # (E, T, A)
@@ -751,8 +741,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
             log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
                 f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
         data = {d: collect_random_rollouts(d, cfg, rng) for d in designs}                         # line 2
-        kind = ("sine-wave (wheels: spline)" if cfg.wheel_splines else "sine-wave") if cfg.random_waves else "spline"
-        log(f"line 2   random {kind} data: "
+        log(f"line 2   random {'sine-wave' if cfg.random_waves else 'spline'} data: "
             f"{sum(len(d.actions) for d in data.values())} episodes")
         run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
         if uses_clone_data(cfg):                                                            # not in the paper

@@ -406,9 +406,12 @@ BUDGET_VARIANTS = {
 
 def seed_runs(folder: Path, pattern: str = "*", finished: int = 0) -> dict:
     """{seed: its metrics.json rows} of every run folder/<pattern>-seed<S>/ with more than
-    `finished` iterations recorded (0: every run), in the order of the seeds."""
-    runs = {int(path.parent.name.rsplit("seed", 1)[1]): json.loads(path.read_text())["iterations"]
-            for path in folder.glob(f"{pattern}-seed*/metrics.json")}
+    `finished` iterations recorded (0: every run), in the order of the seeds; a UsageError when
+    two runs of one seed match (a folder holding both methods' runs and a pattern naming neither)."""
+    paths = sorted(folder.glob(f"{pattern}-seed*/metrics.json"))
+    runs = {int(path.parent.name.rsplit("seed", 1)[1]): json.loads(path.read_text())["iterations"] for path in paths}
+    if len(runs) < len(paths):
+        raise UsageError(f"{folder}: two runs of one seed match {pattern}-seed*: name the run, e.g. leg_leg_wheel-rl")
     return {s: rows for s, rows in sorted(runs.items()) if len(rows) > finished}
 
 
@@ -556,15 +559,15 @@ def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, m
 
 PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, part 9): variant: (what differs, runs)
     "defaults": ("none: Figure 3's committed runs", ("figure3_runs", "leg_leg_wheel-rl")),
-    "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "*")),
+    "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "leg_leg_wheel-rl")),
     "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5)",
              ("walk_panel_c_runs", "leg_leg_wheel-rl")),
     "walk_mix05": ("the walk with half of line 2's episodes splines (--random-wave-share 0.5, since removed)",
-                   ("panel_c_candidates/walk_mix05", "*")),
+                   ("panel_c_candidates/walk_mix05", "leg_leg_wheel-rl")),
     "walk_amd": ("the walk again, on the AMD AVX512 machine of the row below: its ablation row",
-                 ("panel_c_candidates/walk_amd", "*")),
-    "walk_wheel_splines": ("the walk with the wheels' line-2 actions splines, the legs' waves (--wheel-splines on)",
-                           ("panel_c_candidates/walk_wheel_splines", "*"))}
+                 ("panel_c_candidates/walk_amd", "leg_leg_wheel-rl")),
+    "walk_wheel_splines": ("the walk with the wheels' line-2 actions splines, the legs' waves (--wheel-splines on, since removed)",
+                           ("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 

@@ -268,27 +268,6 @@ def test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off():
         np.testing.assert_allclose(data.actions.numpy(), expected, atol=1e-6)
 
 
-def test_wheel_splines_keep_the_wheels_on_splines_and_the_legs_on_waves():
-    """--wheel-splines: on leg_leg_wheel the legs' columns are the waves, the wheels' columns splines
-    drawn after them from the same generator; a design without wheels gets the waves unchanged;
-    without --random-waves the switch is refused."""
-    graph = sim2d.design_graph("leg_leg_wheel")
-    cfg = tiny(random_waves=True, wheel_splines=True, random_action_std=0.5)
-    data = rlil.collect_random_rollouts("leg_leg_wheel", cfg, np.random.default_rng(4))
-    rng = np.random.default_rng(4)
-    waves = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps)
-    wheels = graph.n_wheels * sim2d.WHEEL_ACT_DIM
-    splines = sim2d.random_spline_actions(rng, cfg.random_episodes, wheels, cfg.episode_steps, std=0.5)
-    np.testing.assert_allclose(data.actions[..., :-wheels].numpy(), waves[..., :-wheels], atol=1e-6)
-    np.testing.assert_allclose(data.actions[..., -wheels:].numpy(), splines, atol=1e-6)
-    assert np.abs(waves[..., -wheels:] - splines).max() > 0.1            # the wheels' columns did change
-    hexapod = rlil.collect_random_rollouts("hexapod", cfg, np.random.default_rng(4))
-    same = rlil.collect_random_rollouts("hexapod", tiny(random_waves=True), np.random.default_rng(4))
-    assert torch.equal(hexapod.actions, same.actions)
-    with pytest.raises(ValueError, match="needs random_waves"):
-        rlil.validate_config(tiny(wheel_splines=True))
-
-
 def test_rlil_loss_is_the_equation():
     """eqn. (RLIL_loss): L = L_RL + lambda L_IL."""
     assert rlil.rlil_loss(torch.tensor(-2.0), torch.tensor(3.0), 0.5).item() == pytest.approx(-0.5)
@@ -562,11 +541,12 @@ def test_a_run_written_before_a_removal_loads_only_if_it_left_the_removed_switch
     d = json.loads(json.dumps(run_folders.config_to_dict(rlil.Config())))
     old = {**d, "ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "critic": False,
            "critic_gamma": 0.99, "critic_lambda": 0.95, "critic_steps": 4, "random_wave_share": 1.0,
-           "gnn": {**d["gnn"], "contact_features": False}}
+           "wheel_splines": False, "gnn": {**d["gnn"], "contact_features": False}}
     assert run_folders.config_from_dict(old) == rlil.Config()
     for changed, name in (({"gnn": {**d["gnn"], "contact_features": True}}, "gnn.contact_features"),
                           ({"ensemble": 3}, "ensemble"), ({"critic": True, "critic_gamma": 0.99}, "critic"),
-                          ({"random_waves": True, "random_wave_share": 0.5}, "random_wave_share")):
+                          ({"random_waves": True, "random_wave_share": 0.5}, "random_wave_share"),
+                          ({"random_waves": True, "wheel_splines": True}, "wheel_splines")):
         with pytest.raises(run_folders.UsageError, match=name):
             run_folders.config_from_dict({**d, **changed})
 

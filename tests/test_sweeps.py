@@ -361,7 +361,8 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     """tables.panel_c_budget_table on made-up 5-iteration runs: RL+IL's final mean is 20 m, so the
     line is 18 m; the defaults cross it at iteration 3 on seed 0 only, the walk at iteration 1 on
     both seeds and data16 never; data16's seed 1 is unfinished and left out of its row; a
-    candidate (walk_wheel_splines) is compared with its ablation row (walk_amd)."""
+    candidate (walk_wheel_splines) is compared with its ablation row (walk_amd), and the RL+IL
+    runs in its folder are left out of its (plain RL) row."""
     import json
     def run(folder, name, seed, curve):
         (tmp_path / "results" / folder / f"{name}-seed{seed}").mkdir(parents=True)
@@ -372,11 +373,12 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
         run("walk_panel_c_runs", "leg_leg_wheel-rl", seed, [0, 19, 19, 19, 19, 19])
     run("figure3_runs", "leg_leg_wheel-rl", 0, [0, 1, 2, 18, 18, 18])
     run("figure3_runs", "leg_leg_wheel-rl", 1, [0, 1, 2, 17.9, 17.9, 17.9])
-    run("walk_ablation_runs/data16_c", "x", 0, [0, 1, 1, 1, 1, 1])
-    run("walk_ablation_runs/data16_c", "x", 1, [0, 1, 1])
+    run("walk_ablation_runs/data16_c", "leg_leg_wheel-rl", 0, [0, 1, 1, 1, 1, 1])
+    run("walk_ablation_runs/data16_c", "leg_leg_wheel-rl", 1, [0, 1, 1])
     for seed in (0, 1):
-        run("panel_c_candidates/walk_amd", "x", seed, [0, 1, 1, 1, 1, 17])
-        run("panel_c_candidates/walk_wheel_splines", "x", seed, [0, 1, 1, 1, 18, 18 + seed])
+        run("panel_c_candidates/walk_amd", "leg_leg_wheel-rl", seed, [0, 1, 1, 1, 1, 17])
+        run("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-rl", seed, [0, 1, 1, 1, 18, 18 + seed])
+        run("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-hexapod_car", seed, [20] * 6)  # RL+IL: not a row
     table = tables.panel_c_budget_table(tmp_path).splitlines()
     assert table[0].startswith("Converged: the first iteration at 18.00 m")
     assert table[4].startswith("| defaults | none: Figure 3's committed runs | 2 | 3, never | 1 of 2 | 17.95 [")

@@ -187,9 +187,6 @@ MUTATIONS = [
     ("line 2 ignores --random-waves (splines always)", "modular_rlil_minimal.py",
      "if cfg.random_waves:", "if False:",
      "tests/test_rlil.py::test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off"),
-    ("line 2 ignores --wheel-splines (the wheels on waves too)", "modular_rlil_minimal.py",
-     "if cfg.wheel_splines and wheels:", "if False:",
-     "tests/test_rlil.py::test_wheel_splines_keep_the_wheels_on_splines_and_the_legs_on_waves"),
 ]
 
 
