@@ -29,12 +29,14 @@ from experiments.sweeps import (SAMPLE_COLUMNS, SAMPLE_EFFICIENCY, sample_effici
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def commands(design: str, seed: int, out: Path) -> dict:
-    """method -> (run folder, train.py arguments) of one seed's pair."""
+def commands(design: str, seed: int, out: Path, ppo_eval_every: int | None = None) -> dict:
+    """method -> (run folder, train.py arguments) of one seed's pair; ppo_eval_every: PPO's
+    --eval-every (None: its default)."""
     demos = SAMPLE_EFFICIENCY[design]
     rlil_dir, ppo_dir = out / f"{design}-rlil-seed{seed}", out / f"{design}-ppo-seed{seed}"
+    grid = [] if ppo_eval_every is None else ["--eval-every", str(ppo_eval_every)]
     return {"RL+IL": (rlil_dir, ["--train", design, "--demos", *demos, "--seed", str(seed), "--out", str(rlil_dir)]),
-            "PPO": (ppo_dir, ["--method", "ppo", "--train", design, "--seed", str(seed), "--out", str(ppo_dir)])}
+            "PPO": (ppo_dir, ["--method", "ppo", "--train", design, *grid, "--seed", str(seed), "--out", str(ppo_dir)])}
 
 
 def run_pair(pair: dict, seconds: float) -> None:
@@ -64,6 +66,9 @@ def main(argv=None) -> int:
     parser.add_argument("--design", default="leg_none_wheel", choices=sorted(SAMPLE_EFFICIENCY))
     parser.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1, one pair each (default 3)")
     parser.add_argument("--seconds", type=float, default=400.0, help="PPO's time per pair (default 400)")
+    parser.add_argument("--ppo-eval-every", type=int, default=None,
+                        help="PPO's simulator steps between evaluations (default: PPO's own, 50,000); its "
+                             "evaluations count in its seconds, as RL+IL's do")
     parser.add_argument("--out", type=Path, default=Path("runs/side_by_side"), help="folder of the run folders")
     parser.add_argument("--csv", type=Path, default=Path("results/side_by_side.csv"))
     parser.add_argument("--force", action="store_true", help="replace an existing --csv")
@@ -72,7 +77,7 @@ def main(argv=None) -> int:
         parser.error("--seeds takes 1 to 100 and --seconds 1 to 36000")
     try:
         check_output_file(args.csv, ".csv", "--csv", args.force)
-        pairs = [commands(args.design, seed, args.out) for seed in range(args.seeds)]
+        pairs = [commands(args.design, seed, args.out, args.ppo_eval_every) for seed in range(args.seeds)]
         taken = [d for pair in pairs for d, _ in pair.values() if d.exists()]
         if taken:                                           # never over a run the user has
             raise UsageError(f"{taken[0]} exists: name another --out (a run folder is never replaced here)")

@@ -803,10 +803,12 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         with made_from(" and ".join(map(str, probes))):
             tables[results / "gradient_check.md"] = gradient_check.summary(
                 [r for path in probes for r in read_rows_csv(path)])
-    if (results / "side_by_side.csv").exists():          # experiments/side_by_side.py
-        with made_from(results / "side_by_side.csv"):
-            rows = read_rows_csv(results / "side_by_side.csv")
-            tables[results / "side_by_side.md"] = summarize_sample_efficiency(
+    for name in ("side_by_side", "side_by_side_fine"):   # experiments/side_by_side.py (fine: --ppo-eval-every)
+        if not (results / f"{name}.csv").exists():
+            continue
+        with made_from(results / f"{name}.csv"):
+            rows = read_rows_csv(results / f"{name}.csv")
+            tables[results / f"{name}.md"] = summarize_sample_efficiency(
                 rows, len({r["seed"] for r in rows}), designs=tuple(dict.fromkeys(r["train"] for r in rows)),
                 methods=("RL+IL", "PPO"))
     for name, variants, baseline in (("stability_screen", SCREEN, "paper"), ("stability_confirm", CONFIRM, "paper"),

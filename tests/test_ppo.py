@@ -386,6 +386,18 @@ def test_the_side_by_side_table_lists_only_the_designs_and_methods_asked():
     assert "| leg_none_wheel | PPO | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
 
 
+def test_side_by_side_passes_its_evaluation_grid_to_ppo_only(tmp_path):
+    """--ppo-eval-every N reaches PPO's command line as --eval-every N and not RL+IL's; without it
+    PPO keeps its own grid."""
+    from experiments import side_by_side
+    fine = side_by_side.commands("leg_none_wheel", 1, tmp_path, 12800)
+    i = fine["PPO"][1].index("--eval-every")
+    assert fine["PPO"][1][i + 1] == "12800" and "--eval-every" not in fine["RL+IL"][1]
+    assert "--eval-every" not in side_by_side.commands("leg_none_wheel", 1, tmp_path)["PPO"][1]
+    import train
+    assert train.config_from_args(train.build_parser().parse_args(fine["PPO"][1])).eval_every == 12800
+
+
 def test_side_by_side_refuses_an_existing_run_folder_before_it_runs_anything(tmp_path, monkeypatch, capsys):
     """experiments/side_by_side.py never runs over a run the user has: one line, exit 2, nothing started."""
     from experiments import side_by_side
