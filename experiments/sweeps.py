@@ -756,13 +756,16 @@ def sb3_rows(folder: Path) -> list[dict]:
 
 def mean_curve(rows: list[dict], design: str, method: str) -> list[tuple]:
     """[(sim_steps, mean seconds, [distance per seed]) per iteration] of one design and method;
-    every seed evaluates at the same iterations and simulator steps."""
+    every seed evaluates at the same iterations and simulator steps.  Only iterations that every
+    seed reached count: runs stopped after a time (experiments/side_by_side.py) end at different
+    iterations, and a mean over fewer seeds is not the curve's."""
     table = {}
     for row in rows:
         if row["train"] == design and row["method"] == method:
             table.setdefault(row["iteration"], []).append(row)
+    seeds = max(map(len, table.values()), default=0)
     return [(np.mean([r["sim_steps"] for r in table[i]]), np.mean([r["seconds"] for r in table[i]]),
-             [r["distance_m"] for r in table[i]]) for i in sorted(table)]
+             [r["distance_m"] for r in table[i]]) for i in sorted(table) if len(table[i]) == seeds]
 
 
 def summarize_sample_efficiency(rows: list[dict], seeds: int, problems: list[str] = (),

@@ -384,6 +384,10 @@ def test_the_side_by_side_table_lists_only_the_designs_and_methods_asked():
     assert len(table.strip().splitlines()) == 4 and "hexapod" not in table
     assert "| leg_none_wheel | RL+IL | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
     assert "| leg_none_wheel | PPO | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |" in table
+    stopped = rows + [{"train": "leg_none_wheel", "method": "PPO", "seed": 0, "iteration": 3, "sim_steps": 4000,
+                       "seconds": 40.0, "distance_m": 20.0}]          # one seed went on further before its stop
+    table = sweeps.summarize_sample_efficiency(stopped, 2, designs=("leg_none_wheel",), methods=("RL+IL", "PPO"))
+    assert "| leg_none_wheel | PPO | 2 of 2 | 2,000 | 20 | 3,000 | 30 | not reached |  | 3,000 | 30 | 13.00 |" in table
 
 
 def test_side_by_side_passes_its_evaluation_grid_to_ppo_only(tmp_path):
