@@ -401,7 +401,8 @@ BUDGET_VARIANTS = {
     "B": "300 cloning steps, 1,000 and 250 model steps, K = 60",
     "C": "300 cloning steps, 1,000 and 250 model steps, K = 120 at iteration 1 and 60 after",
     "C_bc1000": "1,000 and 250 model steps, K = 120 at iteration 1 and 60 after",
-    "H32": "networks of width 32 instead of 64 (--gnn-hidden 32), every step as the defaults' (AVX512 machine)"}
+    "H32": "networks of width 32 instead of 64 (--gnn-hidden 32), every step as the defaults' (AVX512 machine)",
+    "BC500": "500 cloning steps (--bc-steps 500), every other step as the defaults' (AVX512 machine)"}
 
 
 def seed_runs(folder: Path, pattern: str = "*", finished: int = 0) -> dict:
