@@ -790,6 +790,10 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         if candidate.is_dir():
             with made_from(candidate):
                 tables[results / f"{name}.md"] = same_seed_area_table(candidate, results / "budget_screen_runs" / "defaults")
+    if (results / "budget_screen_runs" / "BC500").is_dir():   # half the cloning steps against the defaults, same seeds
+        with made_from(results / "budget_screen_runs" / "BC500"):
+            tables[results / "bc500_panel_d.md"] = same_seed_area_table(results / "budget_screen_runs" / "BC500",
+                                                                         results / "budget_screen_runs" / "defaults")
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")
