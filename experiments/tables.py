@@ -397,7 +397,7 @@ def run_steps(path: Path) -> list[int]:
 # The class run's budget screen (issue #33): leg_none_wheel RL+IL at cut budgets, in order of the runs
 BUDGET_VARIANTS = {
     "defaults": "none (1,000 cloning steps; 1,500 and 500 model steps; K = 120 every iteration); seeds 0-2, 5, 6 "
-                "on the AVX2 machine, 3, 4, 7-9 on the AVX512 one (same digits, slower machine)",
+                "on the AVX2 machine, 3, 4, 7-9 on the AVX512 one (seed 0: the same digits on both)",
     "A": "300 cloning steps, 1,000 and 250 model steps, K = 60 of 128 robots (the same robot-steps)",
     "B": "300 cloning steps, 1,000 and 250 model steps, K = 60",
     "C": "300 cloning steps, 1,000 and 250 model steps, K = 120 at iteration 1 and 60 after",
