@@ -55,3 +55,29 @@ def test_replay_runs_the_demonstrators_actions_through_the_model_step_by_step():
     assert r["model_T"] == pytest.approx(0.5) and r["model_episode"] == pytest.approx(1.2)
     true = demo.states[:, :, 0] - demo.states[:, :1, 0]
     assert r["sim_T"] == pytest.approx(true[:, 5].mean()) and r["sim_episode"] == pytest.approx(true[:, 12].mean())
+
+
+def test_the_flattery_curve_watches_the_phase_without_changing_it():
+    """experiments/flattery_curve.py: one row per validation check; the last row is the model's
+    and the simulator's T-step progress that a run's iteration 1 records (the watch draws no
+    random number the phase uses), and the policy moves between checks."""
+    from experiments import flattery_curve as fc
+    cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1)
+    rows = fc.phase_rows(cfg, after=0)
+    assert [r["step"] for r in rows] == list(range(0, cfg.policy_steps + 1, cfg.validate_every))
+    assert set(rows[0]) == set(fc.COLUMNS) and rows[0]["sim_progress_m"] != rows[-1]["sim_progress_m"]
+    row = rlil.algorithm1(cfg, {}, log=lambda m: None).metrics[1]
+    assert rows[-1]["model_progress_m"] == pytest.approx(row["model_progress_m"], abs=1e-6)
+    assert rows[-1]["sim_progress_m"] == pytest.approx(row["sim_progress_m"], abs=1e-6)
+    assert "| car | 0 | 30 | 1 |" in fc.summary(rows)
+
+
+@pytest.mark.parametrize("argv, message", [(["--after", "-1"], "--after takes 0 to 50"),
+                                           (["--set", "horizon=x"], "horizon takes a int"),
+                                           (["--design", "tank"], "tank")])
+def test_flattery_curve_bad_flags_are_one_line(argv, message, capsys):
+    from experiments import flattery_curve as fc
+    with pytest.raises(SystemExit) as e:
+        fc.main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and message in err[-1]
