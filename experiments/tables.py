@@ -29,7 +29,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 
 import modular_rlil_minimal as rlil                                               # noqa: E402
 import sim2d                                                                      # noqa: E402
-from experiments import gradient_check, transfer                                  # noqa: E402
+from experiments import flattery_curve, gradient_check, transfer                  # noqa: E402
 from experiments.run_folders import UsageError                                    # noqa: E402
 from experiments.stats import (area_under_curve, bootstrap_ci, bootstrap_diff_ci, interval, iqm,  # noqa: E402
                                probability_of_improvement, probability_of_improvement_ci, verdict)
@@ -735,6 +735,23 @@ def phase_table(path: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+FLATTERY_VARIANTS = {   # experiments/flattery_curve.py's CSVs, results/flattery_curve_runs/<variant>_seed<S>.csv
+    "walk_hexapod": "the walk preset (line 2's sine waves)",
+    "offset10_hexapod": "the walk with --random-wave-offset 1.0"}
+
+
+def flattery_curve_table(folder: Path) -> str:
+    """Markdown of the first policy phase's flattery curves (issue #34, part 12): per variant of
+    FLATTERY_VARIANTS with CSVs in `folder`, flattery_curve.summary of every seed's rows.  "" when none."""
+    parts = []
+    for variant, what in FLATTERY_VARIANTS.items():
+        paths = sorted(folder.glob(f"{variant}_seed*.csv"))
+        if paths:
+            rows = [r for path in paths for r in read_rows_csv(path)]
+            parts.append(f"**{variant}**: {what}\n\n" + flattery_curve.summary(rows))
+    return "\n".join(parts)
+
+
 def regenerate_tables(root: Path) -> dict[Path, str]:
     """{results/NAME.md: its content regenerated from results/*.csv}.  figure3.csv and
     sample_efficiency.csv must exist; a CSV of ITERATION_TABLES that does not is skipped."""
@@ -786,6 +803,13 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_mix05",), baseline="walk_avx512")
             if table:
                 tables[results / "plain_rl_panel_a_mix.md"] = table
+            offset = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_offset10",), baseline="walk_amd")
+            if offset:                                   # the wave offset against the walk, one CPU (AMD AVX512)
+                tables[results / "plain_rl_panel_a_offset.md"] = offset + "\n" + plain_rl_targets_table(
+                    results / "panel_a_candidates", ("walk_amd", "walk_offset10"))
+    if (results / "flattery_curve_runs").is_dir():
+        with made_from(results / "flattery_curve_runs"):
+            tables[results / "flattery_curve.md"] = flattery_curve_table(results / "flattery_curve_runs")
     for name, folder in (("log_std_floor_panel_d", "log_std_floor_runs"), ("random_waves_panel_d", "random_waves_runs")):
         candidate = results / folder / "panel_d_rlil"        # the main command with one switch, against its defaults
         if candidate.is_dir():
