@@ -569,8 +569,10 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk_amd": ("the walk again, on the AMD AVX512 machine of the row below: its ablation row",
                  ("panel_c_candidates/walk_amd", "leg_leg_wheel-rl")),
     "walk_wheel_splines": ("the walk with the wheels' line-2 actions splines, the legs' waves (--wheel-splines on, since removed)",
-                           ("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-rl"))}
-PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd"}      # a candidate: its ablation row, run on the same machine
+                           ("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-rl")),
+    "walk_offset10": ("the walk with a wave offset per joint (--random-wave-offset 1.0)",
+                      ("panel_c_candidates/walk_offset10", "leg_leg_wheel-rl"))}
+PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_budget_table(root: Path, iters: int = 5) -> str:
