@@ -429,3 +429,18 @@ def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
             assert why is None, f"{path}: {why}"
             cfg = saved["cfg"]
             assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1, **flags), path
+
+
+def test_the_flattery_curve_table_reads_each_variants_seed_csvs(tmp_path):
+    """tables.flattery_curve_table (issue #34, part 12) on made-up CSVs: two seeds of one variant
+    averaged per policy step; a variant without CSVs left out; no CSV at all gives ""."""
+    from experiments import flattery_curve, sweeps as sw
+    for seed, flat in ((0, 1.0), (1, 2.0)):
+        rows = [{"design": "hexapod", "seed": seed, "after": 0, "step": k, "model_progress_m": flat * k / 20,
+                 "sim_progress_m": 0.0, "flattery_m": flat * k / 20, "validation_reward": 0.0, "lr": ""}
+                for k in (0, 20)]
+        sw.write_rows_csv(tmp_path / f"walk_hexapod_seed{seed}.csv", flattery_curve.COLUMNS, rows)
+    table = tables.flattery_curve_table(tmp_path)
+    assert table.startswith("**walk_hexapod**") and "offset10" not in table
+    assert "| hexapod | 0 | 20 | 2 | +1.50 | +0.00 | +1.50, +1.00 - +2.00 |" in table
+    assert tables.flattery_curve_table(tmp_path / "none") == ""
