@@ -148,9 +148,6 @@ class Config:
     """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
     episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
     of resting at a limit; off = the paper"""
-    random_wave_offset: float = 0.0
-    """with random_waves: per joint a constant from [-x, x] added to its wave (clipped to [-1, 1]),
-    so joints also drift to a limit and swing there, where a held command takes them; 0 = off, 0-1"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -224,7 +221,7 @@ def design_codes(field_name: str, designs) -> tuple[str, ...]:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
-    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0, "random_wave_offset": 0.0}
+    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -236,9 +233,6 @@ def validate_config(cfg: Config) -> Config:
     for design in cfg.demos:
         demo_lib.check_demonstrable(sim2d.design_graph(design))
     check_ranges(cfg, AT_LEAST)
-    if cfg.random_wave_offset > 1 or (cfg.random_wave_offset and not cfg.random_waves):
-        raise ValueError(f"random_wave_offset must be from 0 to 1, and 0 without random_waves; "
-                         f"got {cfg.random_wave_offset} with random_waves {'on' if cfg.random_waves else 'off'}")
     if cfg.lr_drop > 1 or cfg.il_decay > 1:
         raise ValueError(f"lr_drop and il_decay must be at most 1, got {cfg.lr_drop} and {cfg.il_decay}")
     if cfg.horizon > min(cfg.episode_steps, cfg.eval_steps):
@@ -288,8 +282,7 @@ def collect_random_rollouts(design: str, cfg: Config, rng: np.random.Generator) 
     default) sine waves instead (sim2d.random_wave_actions)."""
     graph = sim2d.design_graph(design)
     if cfg.random_waves:
-        actions = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
-                                            offset=cfg.random_wave_offset)
+        actions = sim2d.random_wave_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps)
     else:
         actions = sim2d.random_spline_actions(rng, cfg.random_episodes, graph.action_dim, cfg.episode_steps,
                                               std=cfg.random_action_std)              # (E, T, A)

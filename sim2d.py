@@ -406,25 +406,20 @@ def random_spline_actions(rng: np.random.Generator, n: int, action_dim: int, ste
 
 
 def random_wave_actions(rng: np.random.Generator, n: int, action_dim: int, steps: int = 100,
-                        period: tuple = (0.3, 1.2), amplitude: tuple = (0.3, 1.0), offset: float = 0.0) -> np.ndarray:
+                        period: tuple = (0.3, 1.2), amplitude: tuple = (0.3, 1.0)) -> np.ndarray:
     """(n, steps, action_dim) random periodic actions (not the paper's; `--random-waves`).
 
     Per robot one period drawn uniformly from `period` (s; the hexapod demonstrator's gait takes
     0.5 s), and per DoF an amplitude from `amplitude` and a phase from [0, 2 pi):
     a_t = amplitude * sin(2 pi t CONTROL_DT / period + phase).  The joints swing back and forth
     around where they start instead of resting at a limit, as splines' slowly varying rates do;
-    the phases are independent, so no gait is built in.  With `offset` > 0, per DoF a constant
-    drawn from [-offset, offset] is added and the sum clipped to [-1, 1]: a joint with a large
-    offset drifts to its limit and swings there, as under a policy's held command.
+    the phases are independent, so no gait is built in.
     """
     P = rng.uniform(*period, (n, 1, 1))
     amp = rng.uniform(*amplitude, (n, 1, action_dim))
     phase = rng.uniform(0.0, 2 * np.pi, (n, 1, action_dim))
     t = np.arange(steps)[None, :, None] * CONTROL_DT
-    waves = amp * np.sin(2 * np.pi * t / P + phase)
-    if offset > 0:                                   # drawn last: offset 0 draws what it always drew
-        waves = np.clip(waves + rng.uniform(-offset, offset, (n, 1, action_dim)), -1.0, 1.0)
-    return waves
+    return amp * np.sin(2 * np.pi * t / P + phase)
 
 
 # ----------------------------------------------------------------------------

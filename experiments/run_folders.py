@@ -82,7 +82,7 @@ def config_to_dict(cfg) -> dict:
 # code they switched on did nothing: a run written with that value is today's algorithm.
 REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
                   "critic": False, "random_knots": 10, "recent_data": 0.0,
-                  "random_wave_share": 1.0, "wheel_splines": False}
+                  "random_wave_share": 1.0, "wheel_splines": False, "random_wave_offset": 0.0}
 REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   # acted only with it on
 
 

@@ -570,7 +570,7 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
                  ("panel_c_candidates/walk_amd", "leg_leg_wheel-rl")),
     "walk_wheel_splines": ("the walk with the wheels' line-2 actions splines, the legs' waves (--wheel-splines on, since removed)",
                            ("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-rl")),
-    "walk_offset10": ("the walk with a wave offset per joint (--random-wave-offset 1.0)",
+    "walk_offset10": ("the walk with a wave offset per joint (--random-wave-offset 1.0, since removed)",
                       ("panel_c_candidates/walk_offset10", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
@@ -739,7 +739,7 @@ def phase_table(path: Path) -> str:
 
 FLATTERY_VARIANTS = {   # experiments/flattery_curve.py's CSVs, results/flattery_curve_runs/<variant>_seed<S>.csv
     "walk_hexapod": "the walk preset (line 2's sine waves)",
-    "offset10_hexapod": "the walk with --random-wave-offset 1.0"}
+    "offset10_hexapod": "the walk with --random-wave-offset 1.0 (since removed; 99a726e has it)"}
 
 
 def flattery_curve_table(folder: Path) -> str:

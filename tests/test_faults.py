@@ -199,7 +199,6 @@ def test_resume_of_a_policy_file_is_refused_in_one_line(finished, tmp_path, caps
     ("--il-weight", "nan", "il_weight must be a finite number, got nan"),
     ("--policy-lr", "inf", "policy_lr must be a finite number, got inf"),
     ("--policy-lr", "-1e-3", "policy_lr must be positive, got -0.001"),
-    ("--random-wave-offset", "0.5", "0 without random_waves; got 0.5 with random_waves off"),
 ])
 def test_bad_values_name_the_field_and_what_is_accepted(tmp_path, capsys, flag, value, says):
     err = one_line_error([*TINY, flag, value, "--out", str(tmp_path / "run")], capsys)

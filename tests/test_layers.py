@@ -26,7 +26,7 @@ LAYERS = [
     ["interfaces.gymnasium_env", "interfaces.sb3_ppo"],
     ["experiments.stats", "experiments.run_folders"],
     ["experiments.sweeps", "experiments.transfer", "experiments.tables", "experiments.diagnosis",
-     "experiments.gradient_check", "experiments.side_by_side", "experiments.model_replay",
+     "experiments.gradient_check", "experiments.side_by_side", "experiments.model_replay", "experiments.flattery_curve",
      "tools.bench", "tools.check_physics", "tools.mutations"],
     ["train"],
     ["lesson.grade", "lesson.lesson", "lesson.exercises.ex1_reward", "lesson.exercises.ex2_message_passing",

@@ -357,13 +357,3 @@ def test_check_physics_runs_as_a_script_from_the_repository_root():
                           "--robots", "1", "--steps", "3"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert len(out.stdout.splitlines()) == 5 and out.stdout.splitlines()[-1].startswith("max_penetration_cm=")
-
-
-def test_wave_offsets_take_joints_to_their_limits_and_zero_offset_changes_nothing():
-    """`random_wave_actions(offset=X)`: offset 0 draws the walk's waves digit for digit; offset 1
-    holds some commands at the limit (the posture a held command reaches), all within [-1, 1]."""
-    plain = sim2d.random_wave_actions(np.random.default_rng(3), 64, 6, 50)
-    assert np.array_equal(plain, sim2d.random_wave_actions(np.random.default_rng(3), 64, 6, 50, offset=0.0))
-    shifted = sim2d.random_wave_actions(np.random.default_rng(3), 64, 6, 50, offset=1.0)
-    assert np.abs(shifted).max() <= 1.0 and np.mean(np.abs(plain) > 0.95) < 0.05
-    assert np.mean(np.abs(shifted) > 0.95) > 0.15
