@@ -739,7 +739,10 @@ def phase_table(path: Path) -> str:
 
 FLATTERY_VARIANTS = {   # experiments/flattery_curve.py's CSVs, results/flattery_curve_runs/<variant>_seed<S>.csv
     "walk_hexapod": "the walk preset (line 2's sine waves)",
-    "offset10_hexapod": "the walk with --random-wave-offset 1.0 (since removed; 99a726e has it)"}
+    "offset10_hexapod": "the walk with --random-wave-offset 1.0 (since removed; 99a726e has it)",
+    "defaults_hexapod": "the defaults (line 2's splines, 32 random episodes)",
+    "defaults_leg_leg_wheel": "the defaults on leg_leg_wheel",
+    "walk_leg_leg_wheel": "the walk preset on leg_leg_wheel"}
 
 
 def flattery_curve_table(folder: Path) -> str:
