@@ -54,16 +54,15 @@ def flattery(policy, model, design: str, cfg: rlil.Config) -> dict:
 def phase_rows(cfg: rlil.Config, after: int) -> list[dict]:
     """One row per validation check of iteration after + 1's policy phase (plain RL)."""
     policy, model, traj, rng = starting_point(cfg, after)
-    design, rows, step = traj.design, [], [0]
+    design, rows = traj.design, []
     original = rlil.validation_reward
 
     def watched(policy_, model_, val_states, cfg_):
         value = original(policy_, model_, val_states, cfg_)
         with torch.random.fork_rng():                   # touches no generator the phase draws from
             row = flattery(policy_, model_, design, cfg_)
-        rows.append({"design": sim2d.design_name(design), "seed": cfg.seed, "after": after, "step": step[0],
-                     **row, "validation_reward": value, "lr": None})
-        step[0] += cfg.validate_every
+        rows.append({"design": sim2d.design_name(design), "seed": cfg.seed, "after": after,
+                     "step": len(rows) * cfg.validate_every, **row, "validation_reward": value, "lr": None})
         return value
 
     rlil.validation_reward = watched
