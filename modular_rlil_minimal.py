@@ -90,8 +90,6 @@ class Config:
     # Line 1: behavioural cloning
     bc_steps: int = 1000
     """Adam steps of pre-training; 0 skips line 1; 300-3000"""
-    bc_lr: float = 1e-3
-    """learning rate of line 1's Adam steps"""
     # Line 5: model learning
     model_steps: int = 1500
     """model Adam steps at the first iteration; 500-5000"""
@@ -446,7 +444,7 @@ def rlil_loss(loss_rl, loss_il, il_weight: float):
 def pretrain_bc(policy: ModularPolicy, demo_data: dict, cfg: Config, rng: np.random.Generator) -> float:
     """Algorithm 1 line 1: behavioural cloning, minimise L_IL over all demo designs.
     Returns the mean IL loss over the last 10 % of the steps."""
-    opt = torch.optim.Adam(policy.parameters(), lr=cfg.bc_lr, foreach=True)
+    opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr, foreach=True)
     losses = []
     for _ in range(cfg.bc_steps):
         loss, _ = il_loss(policy, demo_data, cfg, rng)

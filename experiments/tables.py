@@ -403,7 +403,9 @@ BUDGET_VARIANTS = {
     "C": "300 cloning steps, 1,000 and 250 model steps, K = 120 at iteration 1 and 60 after",
     "C_bc1000": "1,000 and 250 model steps, K = 120 at iteration 1 and 60 after",
     "H32": "networks of width 32 instead of 64 (--gnn-hidden 32), every step as the defaults' (AVX512 machine)",
-    "BC500": "500 cloning steps (--bc-steps 500), every other step as the defaults' (AVX512 machine)"}
+    "BC500": "500 cloning steps (--bc-steps 500), every other step as the defaults' (AVX512 machine)",
+    "BC500_LR2": "500 cloning steps at learning rate 2e-3 (--bc-steps 500 --bc-lr 2e-3, a setting since removed; "
+                 "c6df9a6 has it), every other step as the defaults' (AVX512 machine)"}
 
 
 def seed_runs(folder: Path, pattern: str = "*", finished: int = 0) -> dict:
@@ -820,10 +822,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         if candidate.is_dir():
             with made_from(candidate):
                 tables[results / f"{name}.md"] = same_seed_area_table(candidate, results / "budget_screen_runs" / "defaults")
-    if (results / "budget_screen_runs" / "BC500").is_dir():   # half the cloning steps against the defaults, same seeds
-        with made_from(results / "budget_screen_runs" / "BC500"):
-            tables[results / "bc500_panel_d.md"] = same_seed_area_table(results / "budget_screen_runs" / "BC500",
-                                                                         results / "budget_screen_runs" / "defaults")
+    for variant in ("BC500", "BC500_LR2"):                 # cuts of line 1 against the defaults, same seeds
+        if (results / "budget_screen_runs" / variant).is_dir():
+            with made_from(results / "budget_screen_runs" / variant):
+                tables[results / f"{variant.lower()}_panel_d.md"] = same_seed_area_table(
+                    results / "budget_screen_runs" / variant, results / "budget_screen_runs" / "defaults")
     if (results / "plain_rl_budget_runs" / "data16_it30").is_dir():
         with made_from(results / "plain_rl_budget_runs" / "data16_it30"):
             tables[results / "plain_rl_30_iterations.md"] = plain_rl_30_table(results / "plain_rl_budget_runs" / "data16_it30")

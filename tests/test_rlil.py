@@ -541,13 +541,15 @@ def test_a_run_written_before_a_removal_loads_only_if_it_left_the_removed_switch
     d = json.loads(json.dumps(run_folders.config_to_dict(rlil.Config())))
     old = {**d, "ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "critic": False,
            "critic_gamma": 0.99, "critic_lambda": 0.95, "critic_steps": 4, "random_wave_share": 1.0,
-           "wheel_splines": False, "random_wave_offset": 0.0, "gnn": {**d["gnn"], "contact_features": False}}
+           "wheel_splines": False, "random_wave_offset": 0.0, "bc_lr": 1e-3,
+           "gnn": {**d["gnn"], "contact_features": False}}
     assert run_folders.config_from_dict(old) == rlil.Config()
     for changed, name in (({"gnn": {**d["gnn"], "contact_features": True}}, "gnn.contact_features"),
                           ({"ensemble": 3}, "ensemble"), ({"critic": True, "critic_gamma": 0.99}, "critic"),
                           ({"random_waves": True, "random_wave_share": 0.5}, "random_wave_share"),
                           ({"random_waves": True, "wheel_splines": True}, "wheel_splines"),
-                          ({"random_waves": True, "random_wave_offset": 1.0}, "random_wave_offset")):
+                          ({"random_waves": True, "random_wave_offset": 1.0}, "random_wave_offset"),
+                          ({"bc_lr": 2e-3}, "bc_lr")):
         with pytest.raises(run_folders.UsageError, match=name):
             run_folders.config_from_dict({**d, **changed})
 
