@@ -573,8 +573,10 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk_wheel_splines": ("the walk with the wheels' line-2 actions splines, the legs' waves (--wheel-splines on, since removed)",
                            ("panel_c_candidates/walk_wheel_splines", "leg_leg_wheel-rl")),
     "walk_offset10": ("the walk with a wave offset per joint (--random-wave-offset 1.0, since removed)",
-                      ("panel_c_candidates/walk_offset10", "leg_leg_wheel-rl"))}
-PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd"}      # a candidate: its ablation row, run on the same machine
+                      ("panel_c_candidates/walk_offset10", "leg_leg_wheel-rl")),
+    "walk_noise06": ("the walk with twice the noise on lines 28-29's noisy half (--policy-noise-std 0.6)",
+                     ("panel_c_candidates/walk_noise06", "leg_leg_wheel-rl"))}
+PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_budget_table(root: Path, iters: int = 5) -> str:
@@ -810,10 +812,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_mix05",), baseline="walk_avx512")
             if table:
                 tables[results / "plain_rl_panel_a_mix.md"] = table
-            offset = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_offset10",), baseline="walk_amd")
-            if offset:                                   # the wave offset against the walk, one CPU (AMD AVX512)
-                tables[results / "plain_rl_panel_a_offset.md"] = offset + "\n" + plain_rl_targets_table(
-                    results / "panel_a_candidates", ("walk_amd", "walk_offset10"))
+            for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise")):   # against the walk, one CPU
+                table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
+                if table:                                                                     # (AMD AVX512)
+                    tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
+                        results / "panel_a_candidates", ("walk_amd", variant))
     if (results / "flattery_curve_runs").is_dir():
         with made_from(results / "flattery_curve_runs"):
             tables[results / "flattery_curve.md"] = flattery_curve_table(results / "flattery_curve_runs")
