@@ -10,14 +10,17 @@ and `<!-- end: results/NAME.md -->` lines with results/NAME.md.
 
     python experiments/tables.py              # results/*.md and the README/docs blocks from results/*.csv
     python experiments/tables.py --check      # writes nothing; exit 1 naming every file that differs
+                                              # and every committed table nothing here makes
     python experiments/tables.py --screen     # first rebuild the stability screens' CSVs from their runs
 """
 from __future__ import annotations
 
 import csv
+import fnmatch
 import json
 import math
 import re
+import subprocess
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -883,6 +886,29 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     return tables
 
 
+# The committed results/**/*.md that other tools write (so `regenerate_tables` does not make them),
+# and the tool that writes each.  Every other committed table must be made by `regenerate_tables`:
+# `unmade_tables` names one that is not, so losing a table's generator turns --check red.
+WRITTEN_ELSEWHERE = {
+    "results/mutations.md": "python tools/mutations.py",
+    "results/model_replay_*.md": "python experiments/model_replay.py (its printed table)",
+    "results/transfer/transfer.md": "python experiments/transfer.py",
+    "results/generalist/transfer.md": "python experiments/transfer.py",
+}
+
+
+def unmade_tables(root: Path, made) -> list[Path]:
+    """The results/**/*.md committed under `root` (tracked by git; none outside a git work tree)
+    that are neither in `made` (`regenerate_tables`' output) nor matched by WRITTEN_ELSEWHERE."""
+    listed = subprocess.run(["git", "-C", str(root), "ls-files", "--", "results"],
+                            capture_output=True, text=True)
+    if listed.returncode != 0:
+        return []
+    committed = [name for name in listed.stdout.splitlines() if name.endswith(".md")]
+    return [root / name for name in committed if (root / name) not in made
+            and not any(fnmatch.fnmatch(name, pattern) for pattern in WRITTEN_ELSEWHERE)]
+
+
 def fill_blocks(text: str, table, where: Path) -> str:
     """`text` with the lines between every `<!-- begin: results/NAME.md -->` line and its
     `<!-- end: ... -->` line replaced by table(NAME); the marker lines stay."""
@@ -902,13 +928,15 @@ def fill_blocks(text: str, table, where: Path) -> str:
     return "".join(out)
 
 
-def tables(root: Path = None, check: bool = False) -> list[Path]:
+def tables(root: Path = None, check: bool = False, unmade: list | None = None) -> list[Path]:
     """Regenerate the results tables under `root` (default: this repository) and the README.md and
     docs/*.md blocks that show them; return every file whose content differs from the regenerated
     one, writing them unless `check`.  A block naming a results/NAME.md that neither is regenerated
-    nor exists is a UsageError."""
+    nor exists is a UsageError.  `unmade`, if a list, receives `unmade_tables`' paths."""
     root = Path(root or ROOT)
     new = regenerate_tables(root)
+    if unmade is not None:
+        unmade += unmade_tables(root, new)
 
     def table(name):
         path = root / "results" / f"{name}.md"
@@ -948,13 +976,17 @@ def main(argv=None) -> int:
             write_rows_csv(ROOT / "results" / f"{name}.csv", ["variant"] + FIGURE3_COLUMNS, rows)
             runs = len({(r["variant"], r["panel"], r["method"], r["seed"]) for r in rows})
             print(f"wrote results/{name}.csv: {runs} runs")
+    unmade = []
     try:
-        stale = tables(ROOT, check=args.check)
+        stale = tables(ROOT, check=args.check, unmade=unmade)
     except UsageError as e:
         parser.error(str(e))
     for p in stale:
         print(f"{'differs' if args.check else 'wrote'}: {p.relative_to(ROOT)}")
-    return 1 if args.check and stale else 0
+    for p in unmade:
+        print(f"no generator: {p.relative_to(ROOT)} is committed, but experiments/tables.py does not make it "
+              "(nor does WRITTEN_ELSEWHERE name the tool that writes it)")
+    return 1 if (args.check and stale) or unmade else 0
 
 
 if __name__ == "__main__":

@@ -25,6 +25,20 @@ def test_committed_tables_and_readme_blocks_are_the_regenerated_ones():
     assert tables.BEGIN.format("figure3_claims") in readme           # the check covers a README block
 
 
+def test_every_committed_table_has_a_generator_and_losing_one_turns_the_check_red(monkeypatch, capsys):
+    """A committed results table that tables.py no longer makes would otherwise be shown, unchanged,
+    from the committed file: --check names it and exits 1 (tools writing a table are listed)."""
+    unmade = []
+    assert tables.tables(tables.ROOT, check=True, unmade=unmade) == [] and unmade == []
+    regenerate, lost = tables.regenerate_tables, tables.ROOT / "results" / "bc500_lr2_panel_d.md"
+    assert lost in regenerate(tables.ROOT)
+    monkeypatch.setattr(tables, "regenerate_tables", lambda root: {p: t for p, t in regenerate(root).items() if p != lost})
+    assert tables.main(["--check"]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out == [f"no generator: results/bc500_lr2_panel_d.md is committed, but experiments/tables.py does not make "
+                   "it (nor does WRITTEN_ELSEWHERE name the tool that writes it)"]
+
+
 def copy_of_repo(tmp_path):
     """results/*.csv and *.md (and those of tables.SWEEPS_OF_THEIR_OWN, each a folder of results/),
     README.md and docs/ (if any) under tmp_path."""
