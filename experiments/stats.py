@@ -9,6 +9,8 @@ over iterations 1..N: "learns faster") or by the iteration it converges at.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 RESAMPLES = 10_000           # bootstrap resamples per interval
@@ -88,6 +90,22 @@ def iterations_to_converge(curve: dict, threshold: float, iters: int) -> int:
     """`converged_at` for one run, a run that never converges counted at the cap iters + 1."""
     at = converged_at(curve, threshold)
     return iters + 1 if at is None else at
+
+
+def wilson_interval(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
+    """The Wilson score interval of a proportion k / n (Wilson 1927): unlike p +- z sqrt(p(1-p)/n) it
+    stays inside [0, 1] and does not shrink to a point at k = 0 or k = n.  Level 0.95 only (z = 1.96)."""
+    if level != 0.95:
+        raise ValueError("wilson_interval: only the 95 % level (z = 1.96) is implemented")
+    z, p = 1.959963984540054, k / n
+    centre, half = p + z * z / (2 * n), z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return (centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n)
+
+
+def chance_of_at_least(k: int, n: int, p: float) -> float:
+    """P(X >= k) for X ~ Binomial(n, p): the chance that k or more of n seeds do a thing each seed
+    does with probability p (e.g. 8 or more of 10 converge)."""
+    return float(sum(math.comb(n, j) * p ** j * (1 - p) ** (n - j) for j in range(k, n + 1)))
 
 
 def verdict(ci: tuple[float, float], margin: float | None = None) -> str:

@@ -32,7 +32,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 
 import modular_rlil_minimal as rlil                                               # noqa: E402
 import sim2d                                                                      # noqa: E402
-from experiments import flattery_curve, gradient_check, transfer                  # noqa: E402
+from experiments import flattery_curve, gradient_check, stats, transfer           # noqa: E402
 from experiments.run_folders import UsageError                                    # noqa: E402
 from experiments.stats import (area_under_curve, bootstrap_ci, bootstrap_diff_ci, interval, iqm,  # noqa: E402
                                probability_of_improvement, probability_of_improvement_ci, verdict)
@@ -582,6 +582,15 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
+def panel_c_line(results: Path, iters: int = 5):
+    """Panel (c)'s convergence line as the committed Figure 3 draws it: 90 % of the best final mean
+    (iteration `iters`) of its two methods' runs in results/figure3_runs; None without them."""
+    runs = [seed_runs(results / "figure3_runs", f"leg_leg_wheel-{name}", finished=iters) for name in ("rl", "hexapod_car")]
+    if not all(runs):
+        return None
+    return 0.9 * max(np.mean([rows[iters]["distance_m"] for rows in r.values()]) for r in runs)
+
+
 def panel_c_budget_table(root: Path, iters: int = 5) -> str:
     """Markdown of plain RL on leg_leg_wheel at the budgets of PANEL_C_VARIANTS (runs under
     root/results): per variant its seeds, the iteration at which each seed first reaches the
@@ -592,10 +601,9 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
     defaults' runs are missing."""
     results = root / "results"
     runs = {v: seed_runs(results / folder, name, finished=iters) for v, (_, (folder, name)) in PANEL_C_VARIANTS.items()}
-    rlil_runs = seed_runs(results / "figure3_runs", "leg_leg_wheel-hexapod_car", finished=iters)
-    if not runs["defaults"] or not rlil_runs:
+    line = panel_c_line(results, iters)
+    if not runs["defaults"] or line is None:
         return ""
-    line = 0.9 * max(np.mean([rows[iters]["distance_m"] for rows in r.values()]) for r in (runs["defaults"], rlil_runs))
     final = {v: {s: rows[iters]["distance_m"] for s, rows in r.items()} for v, r in runs.items()}
 
     def versus(v, base):
@@ -622,6 +630,73 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
                      f"| {versus(v, 'defaults')} | {versus(v, 'data16')} "
                      f"| {versus(v, PANEL_C_PAIRS[v]) if v in PANEL_C_PAIRS and runs[PANEL_C_PAIRS[v]] else ''} | {seconds:.0f} |")
     return "\n".join(lines) + "\n"
+
+
+SEED_RATE_GROUPS = {     # issue #34 part 15 and #33's rule: one setting's runs on several machines and seeds
+    "walk_panel_c": ("the walk, plain RL, leg_leg_wheel: converged by iteration 5", "leg_leg_wheel-rl", (
+        ("walk_panel_c_runs", "Intel Xeon, AVX512 (the committed Figure 3's machine)"),
+        ("panel_c_candidates/walk_amd", "AMD EPYC, AVX512"),
+        ("seed_rate_runs/walk_panel_c", "Intel Xeon, AVX512 with AMX"))),
+    "main_command": ("the main command (RL+IL, leg_none_wheel, the defaults): under 15 m at an iteration from 2 on",
+                     "leg_none_wheel-hexapod_car", (
+        ("figure3_runs", "Intel Xeon, AVX512 (the committed Figure 3's machine)"),
+        ("budget_screen_runs/defaults", "seeds 0-2, 5, 6 on an AVX2 machine, 3, 4, 7-9 on an AMD EPYC"),
+        ("seed_rate_runs/main_command", "Intel Xeon, AVX512 with AMX")))}
+
+
+def seed_rate_table(results: Path, iters: int = 5) -> str:
+    """Markdown of how often one seed of a setting does a thing (SEED_RATE_GROUPS): per folder of
+    its finished runs, the seeds, which of them do it, the rate with its 95 % Wilson interval and
+    the binomial chance that 10 fresh seeds at that rate pass the issue's count (8 or more of 10
+    converge; none of 10 under 15 m); then the same over every folder.  "" without runs."""
+    line = panel_c_line(results, iters)
+    if line is None:
+        return ""
+    blocks = []
+    for group, (what, pattern, folders) in SEED_RATE_GROUPS.items():
+        if group == "walk_panel_c":
+            does = lambda rows: any(r["distance_m"] >= line for r in rows[1:iters + 1])     # noqa: E731
+            mark, passes = f"the line {line:.2f} m; the mark: 8 or more of 10", lambda p: stats_chance(8, p)
+        else:
+            does = lambda rows: min(r["distance_m"] for r in rows[2:iters + 1]) < 15.0      # noqa: E731
+            mark, passes = "the rule: no seed of 10", lambda p: stats_chance(10, 1 - p)
+        lines = [f"**{what}** ({mark})", "",
+                 "| runs | seeds | seeds that do | rate [95 % Wilson CI] | chance that 10 seeds pass |",
+                 "|---|---|---|---|---|"]
+        total = []
+        for folder, machine in folders:
+            runs = seed_runs(results / folder, pattern, finished=iters)
+            if not runs:
+                continue
+            hits = [s for s, rows in runs.items() if does(rows)]
+            total += [(folder, s in hits) for s in runs]
+            seeds = seed_span(list(runs))
+            lines.append(f"| {machine} (`results/{folder}`) | {seeds} | {', '.join(map(str, hits)) or 'none'} "
+                         f"| {rate_cell(len(hits), len(runs))} | {passes(len(hits) / len(runs)):.2f} |")
+        k = sum(hit for _, hit in total)
+        lines.append(f"| all | {len(total)} runs | {k} | {rate_cell(k, len(total))} | {passes(k / len(total)):.2f} |")
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks) + "\n"
+
+
+def stats_chance(at_least: int, p: float) -> float:
+    return stats.chance_of_at_least(at_least, 10, p)
+
+
+def rate_cell(k: int, n: int) -> str:
+    lo, hi = stats.wilson_interval(k, n)
+    return f"{k} of {n}: {k / n:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def seed_span(seeds: list) -> str:
+    """[0, 1, 2, 3, 10, 11, 12] -> "0-3, 10-12"."""
+    spans, seeds = [], sorted(seeds)
+    for s in seeds:
+        if spans and s == spans[-1][1] + 1:
+            spans[-1][1] = s
+        else:
+            spans.append([s, s])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in spans)
 
 
 def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str:
@@ -839,6 +914,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if (results / "walk_panel_c_runs").is_dir():
         with made_from(results / "walk_panel_c_runs"):
             tables[results / "plain_rl_panel_c.md"] = panel_c_budget_table(root)
+    if (results / "seed_rate_runs").is_dir():
+        with made_from(results / "seed_rate_runs"):
+            table = seed_rate_table(results)
+            if table:
+                tables[results / "seed_rate.md"] = table
     if (results / "rounds1_runs").is_dir():
         with made_from(results / "rounds1_runs"):
             tables[results / "rounds1_screen.md"] = rounds1_screen_table(root)

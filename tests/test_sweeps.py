@@ -134,6 +134,18 @@ def test_bootstrap_intervals_of_hand_computed_cases():
     assert stats.bootstrap_ci([5.0, 1.0, 3.0], seed=1) == stats.bootstrap_ci([5.0, 1.0, 3.0], seed=1)
 
 
+def test_a_proportions_wilson_interval_and_the_binomial_chance_of_a_count_by_hand():
+    # 13 of 20: centre (0.65 + 1.96^2 / 40) / (1 + 1.96^2 / 20) = 0.6258, half-width
+    # 1.96 sqrt(0.65 x 0.35 / 20 + 1.96^2 / 1600) / 1.1921 = 0.1930 (statsmodels' "wilson": the same)
+    assert stats.wilson_interval(13, 20) == pytest.approx((0.4329, 0.8188), abs=1e-4)
+    lo, hi = stats.wilson_interval(0, 10)                                        # no success: from 0, not a point
+    assert lo == pytest.approx(0.0, abs=1e-12) and hi == pytest.approx(0.2775, abs=1e-4)
+    # 8, 9 or 10 of 10 at p = 0.65: 45 p^8 q^2 + 10 p^9 q + p^10 = 0.1757 + 0.0725 + 0.0135
+    assert stats.chance_of_at_least(8, 10, 0.65) == pytest.approx(0.2616, abs=1e-4)
+    assert stats.chance_of_at_least(0, 10, 0.3) == pytest.approx(1.0)
+    assert stats.chance_of_at_least(10, 10, 0.95) == pytest.approx(0.95 ** 10)
+
+
 def test_the_interquartile_mean_drops_a_quarter_of_the_runs_at_each_end():
     assert stats.iqm([0.0, 1.0, 2.0, 3.0, 100.0]) == 2.0                 # int(5 / 4) = 1 run cut at each end
     assert stats.iqm([7.0, 1.0, 3.0]) == 11 / 3                          # int(3 / 4) = 0: the mean
@@ -407,6 +419,33 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     assert tables.panel_c_budget_table(tmp_path) == ""
 
 
+def test_the_seed_rate_table_counts_converged_and_fallen_seeds_with_their_chance_of_passing(tmp_path):
+    """tables.seed_rate_table on made-up 5-iteration runs: the line is 18 m (RL+IL's final 20 m); of
+    the walk's three folders one seed in three converges; of the main command's, seed 1 falls under
+    15 m at iteration 2 and seed 0 only at iteration 1, which the rule does not count."""
+    import json
+    def run(folder, name, seed, curve):
+        (tmp_path / folder / f"{name}-seed{seed}").mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": d, "seconds": 10.0} for i, d in enumerate(curve)]
+        (tmp_path / folder / f"{name}-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    run("figure3_runs", "leg_leg_wheel-hexapod_car", 0, [5, 20, 20, 20, 20, 20])
+    run("figure3_runs", "leg_leg_wheel-rl", 0, [0, 1, 1, 1, 1, 1])
+    run("walk_panel_c_runs", "leg_leg_wheel-rl", 0, [0, 1, 1, 1, 1, 17.99])
+    run("walk_panel_c_runs", "leg_leg_wheel-rl", 1, [0, 1, 1, 1, 18, 17])           # converged at 4, fell after
+    run("seed_rate_runs/walk_panel_c", "leg_leg_wheel-rl", 10, [0, 1, 1, 1, 1, 1])
+    run("figure3_runs", "leg_none_wheel-hexapod_car", 0, [5, 14, 20, 20, 20, 20])
+    run("figure3_runs", "leg_none_wheel-hexapod_car", 1, [5, 20, 14.99, 20, 20, 20])
+    run("seed_rate_runs/main_command", "leg_none_wheel-hexapod_car", 10, [5, 20, 20, 20])   # unfinished: left out
+    table = tables.seed_rate_table(tmp_path).splitlines()
+    assert table[0].startswith("**the walk, plain RL, leg_leg_wheel: converged by iteration 5** (the line 18.00 m;")
+    assert table[4].endswith("(`results/walk_panel_c_runs`) | 0-1 | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.05 |")
+    assert table[5].endswith("(`results/seed_rate_runs/walk_panel_c`) | 10 | none | 0 of 1: 0.00 [0.00, 0.79] | 0.00 |")
+    assert table[6] == "| all | 3 runs | 1 | 1 of 3: 0.33 [0.06, 0.79] | 0.00 |"
+    assert table[12].endswith("(`results/figure3_runs`) | 0-1 | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.00 |")
+    assert table[13] == "| all | 2 runs | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.00 |" and len(table) == 14
+    assert tables.seed_rate_table(tmp_path / "nothing") == ""
+
+
 def test_the_walk_rlil_ablation_pairs_each_seed_with_its_own_cpus_walk_run(tmp_path):
     """tables.walk_rlil_ablation_table on made-up 15-iteration runs: seed 0's walk run comes from
     Figure 3's walk runs, seed 1's from walk_rlil_avx512, which replaces Figure 3's where both exist;
@@ -434,7 +473,8 @@ def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
     reproduce them; fails when the preset and the runs part (a changed field, a switch left out)."""
     root = sweeps.ROOT / "results"
     folders = {"plain_rl_budget_runs/data16_waves_stdmin10": {}, "figure3_walk_runs": {},
-               "walk_panel_c_runs": {"iters": 5}, "panel_a_candidates/walk_avx512": {}}
+               "walk_panel_c_runs": {"iters": 5}, "panel_a_candidates/walk_avx512": {},
+               "seed_rate_runs/walk_panel_c": {"iters": 5}}
     for folder, flags in folders.items():
         paths = sorted(root.glob(f"{folder}/*-seed*/metrics.json"))
         assert len(paths) >= (10 if folder in ("figure3_walk_runs", "walk_panel_c_runs") else 0), folder
@@ -443,6 +483,20 @@ def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
             assert why is None, f"{path}: {why}"
             cfg = saved["cfg"]
             assert cfg == rlil.preset("walk", train=cfg.train, demos=cfg.demos, seed=cfg.seed, threads=1, **flags), path
+
+
+def test_the_committed_main_command_runs_are_the_defaults():
+    """The runs that seed_rate_table adds to the main command at the defaults (#33's rule) must
+    record the defaults' config: fails when one ran with another setting.  (The budget screen's
+    earlier defaults record a scratch setting at its off value; see its report.)"""
+    root = sweeps.ROOT / "results"
+    for folder in ("seed_rate_runs/main_command",):
+        for path in sorted(root.glob(f"{folder}/*-seed*/metrics.json")):
+            saved, why = sweeps.read_metrics(path.parent)
+            assert why is None, f"{path}: {why}"
+            cfg = saved["cfg"]
+            assert cfg == rlil.preset("default", train=("lnwwnl",), demos=("llllll", "wnwwnw"), seed=cfg.seed,
+                                      threads=1), path
 
 
 def test_the_flattery_curve_table_reads_each_variants_seed_csvs(tmp_path):
