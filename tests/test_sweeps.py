@@ -419,10 +419,11 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     assert tables.panel_c_budget_table(tmp_path) == ""
 
 
-def test_the_seed_rate_table_counts_converged_and_fallen_seeds_with_their_chance_of_passing(tmp_path):
+def test_the_seed_rate_table_counts_converged_fallen_and_falling_seeds_with_their_chance(tmp_path):
     """tables.seed_rate_table on made-up 5-iteration runs: the line is 18 m (RL+IL's final 20 m); of
-    the walk's three folders one seed in three converges; of the main command's, seed 1 falls under
-    15 m at iteration 2 and seed 0 only at iteration 1, which the rule does not count."""
+    the walk's three runs one converges; of the main command's, seed 1 is under 15 m at iteration 2
+    and seed 0 only at iteration 1, which #33's rule does not count, while both fall by more than
+    3 m (seed 0 from iteration 0 to 1, which #34's mark counts)."""
     import json
     def run(folder, name, seed, curve):
         (tmp_path / folder / f"{name}-seed{seed}").mkdir(parents=True)
@@ -433,17 +434,20 @@ def test_the_seed_rate_table_counts_converged_and_fallen_seeds_with_their_chance
     run("walk_panel_c_runs", "leg_leg_wheel-rl", 0, [0, 1, 1, 1, 1, 17.99])
     run("walk_panel_c_runs", "leg_leg_wheel-rl", 1, [0, 1, 1, 1, 18, 17])           # converged at 4, fell after
     run("seed_rate_runs/walk_panel_c", "leg_leg_wheel-rl", 10, [0, 1, 1, 1, 1, 1])
-    run("figure3_runs", "leg_none_wheel-hexapod_car", 0, [5, 14, 20, 20, 20, 20])
+    run("figure3_runs", "leg_none_wheel-hexapod_car", 0, [18, 14, 20, 20, 20, 20])  # falls 4 m at iteration 1
     run("figure3_runs", "leg_none_wheel-hexapod_car", 1, [5, 20, 14.99, 20, 20, 20])
     run("seed_rate_runs/main_command", "leg_none_wheel-hexapod_car", 10, [5, 20, 20, 20])   # unfinished: left out
     table = tables.seed_rate_table(tmp_path).splitlines()
-    assert table[0].startswith("**the walk, plain RL, leg_leg_wheel: converged by iteration 5** (the line 18.00 m;")
+    assert table[0] == ("**the walk, plain RL, leg_leg_wheel: a seed converges by iteration 5 (panel (c)'s line, "
+                        "18.00 m)** (the mark: #34: 8 or more of 10)")
     assert table[4].endswith("(`results/walk_panel_c_runs`) | 0-1 | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.05 |")
     assert table[5].endswith("(`results/seed_rate_runs/walk_panel_c`) | 10 | none | 0 of 1: 0.00 [0.00, 0.79] | 0.00 |")
     assert table[6] == "| all | 3 runs | 1 | 1 of 3: 0.33 [0.06, 0.79] | 0.00 |"
+    assert table[8].startswith("**the main command") and "#33's rule: none of 10" in table[8]
     assert table[12].endswith("(`results/figure3_runs`) | 0-1 | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.00 |")
-    assert table[13] == "| all | 2 runs | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.00 |" and len(table) == 14
-    assert tables.seed_rate_table(tmp_path / "nothing") == ""
+    assert table[13] == "| all | 2 runs | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.00 |"
+    assert "falls by more than 3 m" in table[15] and table[20] == "| all | 2 runs | 2 | 2 of 2: 1.00 [0.34, 1.00] | 0.00 |"
+    assert len(table) == 21 and tables.seed_rate_table(tmp_path / "nothing") == ""
 
 
 def test_the_walk_rlil_ablation_pairs_each_seed_with_its_own_cpus_walk_run(tmp_path):
