@@ -646,11 +646,13 @@ def eval_seed(cfg: Config) -> int:
 
 def evaluate_iteration(policy, model, designs: list[str], cfg: Config, i: int) -> dict:
     """The metrics row of iteration i: distance in the simulator over every training design
-    (mean, min, max), and from iteration 1 on `model_bias`'s figures, averaged over designs."""
+    (mean, min, max), how many starts flipped (|pitch| > sim2d.FLIP_PITCH at some step: the
+    distance still counts what a robot drives on its back), and from iteration 1 on
+    `model_bias`'s figures, averaged over designs."""
     results = {d: evaluate_policy(policy, d, cfg, eval_seed(cfg)) for d in designs}
     dist = np.concatenate([r.distance_m for r in results.values()])
     row = {"iteration": i, "distance_m": float(dist.mean()), "distance_min_m": float(dist.min()),
-           "distance_max_m": float(dist.max())}
+           "distance_max_m": float(dist.max()), "flipped": int(sum(r.flipped.sum() for r in results.values()))}
     if i > 0:
         bias = [model_bias(policy, model, d, r, cfg) for d, r in results.items()]
         row.update({k: float(np.mean([b[k] for b in bias])) for k in bias[0]})
@@ -713,6 +715,11 @@ class ProgressLog:
         print(f"[{time.perf_counter() - self.t0:6.1f} s] {message}", flush=True)
 
 
+def flips(row: dict, starts: int) -> str:
+    """", 3 of 8 starts flipped" for the progress line when an evaluated robot flipped, else ""."""
+    return f", {row['flipped']} of {starts} starts flipped" if row.get("flipped") else ""
+
+
 def record(run: Run, row: dict, log) -> None:
     """Append a metrics row; a non-finite number is logged and stored as None (JSON null)."""
     bad = [k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
@@ -750,7 +757,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         row = evaluate_iteration(policy, model, designs, cfg, 0)
         record(run, {**row, "il_weight": run.il_weight, "sim_steps": sim_steps(cfg, 0),
                      "seconds": time.perf_counter() - t0}, log)
-        log(f"iteration 0: {row['distance_m']:.2f} m in {cfg.eval_steps} steps")
+        log(f"iteration 0: {row['distance_m']:.2f} m in {cfg.eval_steps} steps"
+            f"{flips(row, cfg.eval_episodes * len(designs))}")
         if on_iteration:
             on_iteration(run)
 
@@ -774,7 +782,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
                      "sim_steps": sim_steps(cfg, i), "seconds": time.perf_counter() - t0}, log)
         log(f"iter {i}  model loss {fit_loss:.4f}; policy: RL loss {phase['rl_loss']:.3f}, "
             f"{phase['reverts']} reverts, lr {phase['lr']:.1e}; {row['distance_m']:.2f} m "
-            f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps; "
+            f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps"
+            f"{flips(row, cfg.eval_episodes * len(designs))}; "
             f"first {cfg.horizon} steps: model {row['model_progress_m']:.2f} m, "
             f"simulator {row['sim_progress_m']:.2f} m, model replaying the simulator's actions "
             f"off by {row['model_path_error_m']:.2f} m"

@@ -438,9 +438,11 @@ class PPORun:
 def evaluation_row(run: PPORun, seconds: float) -> dict:
     """Sec. IV's metric with modular_rlil_minimal.evaluate_policy: the same starts as Algorithm 1's runs."""
     design = run.cfg.train[0]
-    d = evaluate_policy(Memoryless(run.policy), design, run.cfg, eval_seed(run.cfg)).distance_m
+    result = evaluate_policy(Memoryless(run.policy), design, run.cfg, eval_seed(run.cfg))
+    d = result.distance_m
     return {"iteration": run.iteration, "sim_steps": run.sim_steps, "distance_m": float(d.mean()),
-            "distance_min_m": float(d.min()), "distance_max_m": float(d.max()), "seconds": seconds}
+            "distance_min_m": float(d.min()), "distance_max_m": float(d.max()),
+            "flipped": int(result.flipped.sum()), "seconds": seconds}
 
 
 def set_initial_std(policy: ModularPolicy, std: float) -> None:

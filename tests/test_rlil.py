@@ -464,6 +464,18 @@ def test_every_iteration_is_evaluated_from_the_same_starts_and_seeds_differ(monk
     assert rlil.eval_seed(dataclasses.replace(cfg, seed=1)) != seeds[0]
 
 
+def test_the_metrics_row_counts_the_evaluated_starts_that_flipped_and_the_log_says_so(monkeypatch):
+    """A robot that flips and drives on its back still adds its progress to the distance (Sec. IV's
+    metric as written); the row says how many of the starts did, summed over the training designs."""
+    def episodes(flipped):
+        return sim2d.Episodes("wnwwnw", np.zeros((3, 2, 8)), {}, np.zeros((3, 1, 4)), np.array(flipped))
+    runs = {"wnwwnw": episodes([True, False, True]), "lnwwnl": episodes([False, False, True])}
+    monkeypatch.setattr(rlil, "evaluate_policy", lambda policy, design, cfg, seed: runs[design])
+    row = rlil.evaluate_iteration(None, None, ["wnwwnw", "lnwwnl"], smoke(train=("car",)), 0)
+    assert row["flipped"] == 3 and isinstance(row["flipped"], int)
+    assert rlil.flips(row, 6) == ", 3 of 6 starts flipped" and rlil.flips({**row, "flipped": 0}, 6) == ""
+
+
 def test_cli_eval_zero_shot(tmp_path, cache):
     train.run(smoke(train=("car",), iters=1), tmp_path, log=quiet, cache_dir=cache)
     out = subprocess.run([sys.executable, "train.py", "--eval", str(tmp_path), "--design", "lwnnwl"],
