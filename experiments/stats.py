@@ -92,12 +92,10 @@ def iterations_to_converge(curve: dict, threshold: float, iters: int) -> int:
     return iters + 1 if at is None else at
 
 
-def wilson_interval(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
-    """The Wilson score interval of a proportion k / n (Wilson 1927): unlike p +- z sqrt(p(1-p)/n) it
-    stays inside [0, 1] and does not shrink to a point at k = 0 or k = n.  Level 0.95 only (z = 1.96)."""
-    if level != 0.95:
-        raise ValueError("wilson_interval: only the 95 % level (z = 1.96) is implemented")
-    z, p = 1.959963984540054, k / n
+def wilson_interval(k: int, n: int) -> tuple[float, float]:
+    """The 95 % Wilson score interval of a proportion k / n (Wilson 1927): unlike p +- z sqrt(p(1-p)/n)
+    it stays inside [0, 1] and does not shrink to a point at k = 0 or k = n."""
+    z, p = 1.959963984540054, k / n                  # z: the normal's 97.5th percentile (LEVEL = 0.95)
     centre, half = p + z * z / (2 * n), z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
     return (centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n)
 
