@@ -159,9 +159,9 @@ def variant_rows(root: Path, variants: dict, seeds: int, panels: str) -> list[di
     return rows
 
 
-def largest_fall(curve: dict, iters: int) -> float:
-    """A run's largest loss of distance between consecutive iterations from iteration 1 on (0 if none)."""
-    return max([0.0] + [curve[i] - curve[i + 1] for i in range(1, iters) if i in curve and i + 1 in curve])
+def largest_fall(curve: dict, iters: int, first: int = 1) -> float:
+    """A run's largest loss of distance between consecutive iterations from iteration `first` on (0 if none)."""
+    return max([0.0] + [curve[i] - curve[i + 1] for i in range(first, iters) if i in curve and i + 1 in curve])
 
 
 def variant_stats(rows: list[dict], variant: str, rl_from: str | None, panel: str, iters: int) -> dict:
@@ -422,9 +422,19 @@ def seed_runs(folder: Path, pattern: str = "*", finished: int = 0) -> dict:
     return {s: rows for s, rows in sorted(runs.items()) if len(rows) > finished}
 
 
+def run_curve(rows: list) -> dict:
+    """{iteration: distance_m} of one run's metrics.json rows."""
+    return {r["iteration"]: r["distance_m"] for r in rows}
+
+
 def run_area(rows: list, iters: int) -> float:
     """stats.area_under_curve of one run's metrics.json rows (mean distance over iterations 1-iters)."""
-    return area_under_curve({r["iteration"]: r["distance_m"] for r in rows}, iters)
+    return area_under_curve(run_curve(rows), iters)
+
+
+def lowest_from_iteration_2(rows: list, iters: int = 5) -> float:
+    """A run's lowest distance over iterations 2-iters (#33's rule: none under 15 m)."""
+    return min(r["distance_m"] for r in rows[2:iters + 1])
 
 
 def budget_screen_table(runs: Path) -> str:
@@ -557,10 +567,10 @@ def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, m
                for i in range(1, 16)}
         worst = max(gap, key=gap.get)
         kept = np.mean([rows[i]["kept_new"] for rows in runs.values() for i in range(2, 16)])
-        falls = {s: max(rows[i]["distance_m"] - rows[i + 1]["distance_m"] for i in range(15)) for s, rows in runs.items()}
-        falling = ", ".join(str(s) for s, f in falls.items() if f > 3) or "none"
+        falls = {s: largest_fall(run_curve(rows), 15, first=0) for s, rows in runs.items()}
+        falling = ", ".join(str(s) for s, f in falls.items() if f > FALL_M) or "none"
         lines.append(f"| {variant} | {len(runs)} | {gap[1]:+.2f} | {gap[worst]:+.2f} ({worst}) | {kept:.0%} "
-                     f"| {max(0.0, max(falls.values())):.2f} | {falling} |")
+                     f"| {max(falls.values()):.2f} | {falling} |")
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
@@ -648,11 +658,10 @@ SEED_RATE_EVENTS = (
      lambda rows, line: any(r["distance_m"] >= line for r in rows[1:6]),
      "#34: 8 or more of 10", lambda p: stats.chance_of_at_least(8, 10, p)),
     ("the main command (RL+IL, leg_none_wheel, the defaults)", "is under 15 m at an iteration from 2 on",
-     lambda rows, line: min(r["distance_m"] for r in rows[2:6]) < 15.0,
+     lambda rows, line: lowest_from_iteration_2(rows) < 15.0,
      "#33's rule: none of 10", lambda p: (1 - p) ** 10),
     ("the main command (RL+IL, leg_none_wheel, the defaults)", f"falls by more than {FALL_M:.0f} m between two "
-     "iterations, from iteration 0 on", lambda rows, line: max(rows[i]["distance_m"] - rows[i + 1]["distance_m"]
-                                                              for i in range(5)) > FALL_M,
+     "iterations, from iteration 0 on", lambda rows, line: largest_fall(run_curve(rows), 5, first=0) > FALL_M,
      "#34: none of 10", lambda p: (1 - p) ** 10))
 
 
@@ -712,7 +721,7 @@ def same_seed_area_table(candidate: Path, baseline: Path, iters: int = 5) -> str
         return ""
     area, low, secs = ({name: [of(runs[s]) for s in seeds] for name, runs in sides.items()}
                        for of in (lambda rows: run_area(rows, iters),
-                                  lambda rows: min(r["distance_m"] for r in rows[2:iters + 1]),
+                                  lambda rows: lowest_from_iteration_2(rows, iters),
                                   lambda rows: sum(r["seconds"] for r in rows)))
     lines = ["| seed | area, candidate (m) | area, baseline (m) | difference (m) "
              "| lowest from iteration 2: candidate, baseline (m) | s per run: candidate, baseline |",
@@ -765,7 +774,7 @@ def rounds1_screen_table(root: Path) -> str:
                 raise UsageError(f"results/figure3_runs/ has no {design}-{tag} run of seeds {sorted(set(new) - set(committed))}")
             old = {s: committed[s] for s in new}
             a_new, a_old = ([run_area(rows, 5) for rows in runs.values()] for runs in (new, old))
-            low = min(r["distance_m"] for rows in new.values() for r in rows[2:6])
+            low = min(lowest_from_iteration_2(rows) for rows in new.values())
             s_new, s_old = (np.mean([sum(r["seconds"] for r in rows) for rows in runs.values()]) for runs in (new, old))
             lines.append(f"| ({panel}) {design} | {method} | {len(new)} | {np.mean(a_new):.2f} "
                          f"{interval(bootstrap_ci(a_new))} | {np.mean(a_old):.2f} | {difference(a_new, a_old)} "
