@@ -81,3 +81,29 @@ def test_flattery_curve_bad_flags_are_one_line(argv, message, capsys):
         fc.main(argv)
     err = capsys.readouterr().err.strip().splitlines()
     assert e.value.code == 2 and message in err[-1]
+
+
+def test_the_clone_row_is_a_runs_iteration_0(tmp_path):
+    """experiments/clone_flips.py clones as algorithm1's line 1 does (its demos, seeding and steps):
+    its distance and flipped count are the run's iteration-0 row, and the cloning did something."""
+    from experiments import clone_flips
+    cfg = rlil.preset("tiny", train=("wnwwnw",), demos=("wnwwnw",), bc_steps=30, eval_steps=60, policy_steps=6,
+                      iters=1, seed=3)
+    row = clone_flips.clone_row(cfg, tmp_path)
+    run = rlil.algorithm1(cfg, rlil.load_demos(cfg, tmp_path), log=lambda m: None).metrics[0]
+    assert row["distance_m"] == run["distance_m"] and row["flipped"] == run["flipped"]
+    assert set(row) == set(clone_flips.COLUMNS) and row["starts"] == cfg.eval_episodes
+    uncloned = clone_flips.clone_row(rlil.preset("tiny", train=("wnwwnw",), demos=("wnwwnw",), bc_steps=0,
+                                                 eval_steps=60, seed=3), tmp_path)
+    assert uncloned["distance_m"] != row["distance_m"]
+
+
+@pytest.mark.parametrize("argv, message", [(["--seeds", "-1"], "--seeds takes 0 to"),
+                                           (["--train", "tank"], "tank"),
+                                           (["--out", "x.txt"], "name a .csv file")])
+def test_clone_flips_bad_flags_are_one_line(argv, message, capsys):
+    from experiments import clone_flips
+    with pytest.raises(SystemExit) as e:
+        clone_flips.main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and message in err[-1]
