@@ -25,8 +25,11 @@ first model also sees the clone's roll-outs (`--clone-data`,
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
 Algorithm 1.  One more, off by default and on in `--preset walk`: `--random-waves`
-(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Mechanisms that
-were measured and did not help are not in the code; docs/history/ has their results.
+(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Off by default,
+being screened at the walk preset (docs/history/2026-12-plain-rl-diagnosis.md, part 17):
+a critic that bootstraps the T-step model return (`--critic`, `bootstrapped_return`,
+`fit_critic`).  Mechanisms that were measured and did not help are not in the code;
+docs/history/ has their results.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car

@@ -588,8 +588,11 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk_offset10": ("the walk with a wave offset per joint (--random-wave-offset 1.0, since removed)",
                       ("panel_c_candidates/walk_offset10", "leg_leg_wheel-rl")),
     "walk_noise06": ("the walk with twice the noise on lines 28-29's noisy half (--policy-noise-std 0.6)",
-                     ("panel_c_candidates/walk_noise06", "leg_leg_wheel-rl"))}
-PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd"}      # a candidate: its ablation row, run on the same machine
+                     ("panel_c_candidates/walk_noise06", "leg_leg_wheel-rl")),
+    "walk_critic": ("the walk with a critic bootstrapping the T-step model return (--critic on)",
+                    ("panel_c_candidates/walk_critic", "leg_leg_wheel-rl"))}
+PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd",
+                 "walk_critic": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_line(results: Path, iters: int = 5):
@@ -900,7 +903,8 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_mix05",), baseline="walk_avx512")
             if table:
                 tables[results / "plain_rl_panel_a_mix.md"] = table
-            for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise")):   # against the walk, one CPU
+            for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise"),   # against the walk, one CPU
+                                  ("walk_critic", "critic")):
                 table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
                 if table:                                                                     # (AMD AVX512)
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
