@@ -25,11 +25,8 @@ first model also sees the clone's roll-outs (`--clone-data`,
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
 Algorithm 1.  One more, off by default and on in `--preset walk`: `--random-waves`
-(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Off by default,
-being screened at the walk preset (docs/history/2026-12-plain-rl-diagnosis.md, part 17):
-a critic that bootstraps the T-step model return (`--critic`, `bootstrapped_return`,
-`fit_critic`).  Mechanisms that were measured and did not help are not in the code;
-docs/history/ has their results.
+(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Mechanisms that
+were measured and did not help are not in the code; docs/history/ has their results.
 
 The command line is train.py:
     python train.py --train leg_none_wheel --demos hexapod car
@@ -48,7 +45,7 @@ import torch
 
 import demos as demo_lib
 import sim2d
-from gnn import GNNConfig, ModularModel, ModularPolicy, ModularValue
+from gnn import GNNConfig, ModularModel, ModularPolicy
 
 
 # ----------------------------------------------------------------------------
@@ -151,15 +148,6 @@ class Config:
     """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
     episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
     of resting at a limit; off = the paper"""
-    critic: bool = False
-    """L_RL's T-step model return plus gamma^T V_psi(O(s~_T)), a learned value of where the roll-out
-    ends, fitted to TD(lambda) targets of the roll-outs (SHAC, Xu et al. 2022); off = the paper"""
-    critic_gamma: float = 0.99
-    """with critic: the discount of the return V_psi estimates; 0.9-1"""
-    critic_lambda: float = 0.95
-    """with critic: lambda of V_psi's TD(lambda) targets; 0-1"""
-    critic_steps: int = 4
-    """with critic: V_psi's Adam steps on each policy step's roll-outs; 1-10"""
     gnn: GNNConfig = field(default_factory=GNNConfig)
 
 
@@ -233,7 +221,7 @@ def design_codes(field_name: str, designs) -> tuple[str, ...]:
 AT_LEAST = {   # lower bounds of the numeric fields; the rest must be positive
     "seed": 0, "bc_steps": 0, "finetune_steps": 0, "random_action_std": 0.0, "policy_noise_std": 0.0,
     "il_weight": 0.0, "il_decay": 0.0, "entropy_weight": 0.0, "demo_noise": 0.0, "horizon": 2,
-    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0, "critic_gamma": 0.0, "critic_lambda": 0.0}
+    "buffer_size": 2, "rounds": 0, "improvement_margin": 0.0}
 
 
 def validate_config(cfg: Config) -> Config:
@@ -245,9 +233,8 @@ def validate_config(cfg: Config) -> Config:
     for design in cfg.demos:
         demo_lib.check_demonstrable(sim2d.design_graph(design))
     check_ranges(cfg, AT_LEAST)
-    if max(cfg.lr_drop, cfg.il_decay, cfg.critic_gamma, cfg.critic_lambda) > 1:
-        raise ValueError(f"lr_drop, il_decay, critic_gamma and critic_lambda must be at most 1, got {cfg.lr_drop}, "
-                         f"{cfg.il_decay}, {cfg.critic_gamma} and {cfg.critic_lambda}")
+    if cfg.lr_drop > 1 or cfg.il_decay > 1:
+        raise ValueError(f"lr_drop and il_decay must be at most 1, got {cfg.lr_drop} and {cfg.il_decay}")
     if cfg.horizon > min(cfg.episode_steps, cfg.eval_steps):
         raise ValueError(f"horizon ({cfg.horizon}) must not exceed episode_steps ({cfg.episode_steps}) "
                          f"or eval_steps ({cfg.eval_steps})")
@@ -395,12 +382,6 @@ def rollout(policy: ModularPolicy, model, s0, h0, graph, horizon: int, determini
     term sees them unclipped, which keeps a gradient that pulls saturated
     commands back into range.
     """
-    rewards, states, h = rollout_steps(policy, model, s0, h0, graph, horizon, deterministic)
-    return rewards.sum(0), states[-1], h
-
-
-def rollout_steps(policy: ModularPolicy, model, s0, h0, graph, horizon: int, deterministic: bool = False):
-    """`rollout`, step by step: the rewards (T, B), the states (T + 1, B, S) and the final hidden state."""
     pi, f = policy.on_design(graph), model.on_design(graph)           # weights gathered along the design's nodes once
     states, actions, h = [s0], [], h0
     for _ in range(horizon):
@@ -410,26 +391,17 @@ def rollout_steps(policy: ModularPolicy, model, s0, h0, graph, horizon: int, det
         states.append(f(s, a))                                                  # (B, S)
         actions.append(a)
     s = torch.stack(states)                                                     # (T + 1, B, S)
-    return sim2d.reward(s[:-1], torch.stack(actions), s[1:], graph), s, h       # (T, B), (T + 1, B, S)
+    total = sim2d.reward(s[:-1], torch.stack(actions), s[1:], graph).sum(0)     # (B,)
+    return total, states[-1], h
 
 
-def rl_loss(policy: ModularPolicy, model, buffers: dict, cfg: Config, rng, critic=None,
-            rollouts: dict | None = None) -> torch.Tensor:
+def rl_loss(policy: ModularPolicy, model, buffers: dict, cfg: Config, rng) -> torch.Tensor:
     """Algorithm 1 lines 9-16, eqn. (RL_loss): L_RL = -R, the batch mean of the T-step model
-    return from initial states and hidden states sampled from B, summed over d_train.
-    With a `critic` (`--critic`, not in the paper), R is `bootstrapped_return` and each design's
-    detached roll-out (states, rewards) is put in `rollouts`, for `fit_critic`."""
+    return from initial states and hidden states sampled from B, summed over d_train."""
     loss = 0.0
     for design, buffer in buffers.items():
         s0, h0 = buffer.sample(cfg.batch, rng)                                          # line 9
-        graph = sim2d.design_graph(design)
-        if critic is None:
-            R, _, _ = rollout(policy, model, s0, h0, graph, cfg.horizon)                # lines 10-15
-        else:                                                                           # not in the paper
-            rewards, states, _ = rollout_steps(policy, model, s0, h0, graph, cfg.horizon)
-            R = bootstrapped_return(rewards, states[-1], critic, graph, cfg)
-            if rollouts is not None:
-                rollouts[design] = (states.detach(), rewards.detach())
+        R, _, _ = rollout(policy, model, s0, h0, sim2d.design_graph(design), cfg.horizon)   # lines 10-15
         loss = loss - R.mean()                                                          # line 16
     return loss
 
@@ -580,27 +552,21 @@ def gradient_step(opt, loss, policy, grad_clip: float) -> bool:
 
 
 def optimize_policy(policy: ModularPolicy, model, data: dict[str, Trajectories],
-                    demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator,
-                    critic=None) -> dict:
+                    demo_data: dict, il_weight: float, cfg: Config, rng: np.random.Generator) -> dict:
     """Algorithm 1 lines 7-26: K steps of L = L_RL + lambda (L_IL + entropy penalty), the model frozen.
 
     Returns the phase's metrics: RL and IL loss (means of the last 10 steps;
     il_loss None without IL), the last passed validation reward, reverts and
-    the final learning rate.  With a `critic` (`--critic`, not in the paper),
-    L_RL bootstraps with it and it takes `fit_critic`'s steps after every
-    policy step (critic_loss: its mean of the last 10); the validation reward
-    stays the paper's T-step model return, a yardstick that does not move as
-    the critic learns.
+    the final learning rate.
     """
     model.requires_grad_(False)                                                   # frozen in this phase
     buffers = {d: init_buffer(policy, traj, cfg, rng) for d, traj in data.items()}                # line 7
     val_states = {d: sample_sim_states(traj, cfg.validation_multiple * cfg.batch, rng) for d, traj in data.items()}
     opt = torch.optim.Adam(policy.parameters(), lr=cfg.policy_lr, foreach=True)
     lr_rule = AdaptiveLearningRate(policy, opt, validation_reward(policy, model, val_states, cfg), cfg.lr_drop)
-    rl_values, il_values, critic_values, rollouts = [], [], [], {}
-    critic_opt = torch.optim.Adam(critic.parameters(), lr=cfg.policy_lr) if critic is not None else None
+    rl_values, il_values = [], []
     for k in range(1, cfg.policy_steps + 1):                                                       # line 8
-        loss_rl = rl_loss(policy, model, buffers, cfg, rng, critic, rollouts)                      # lines 9-16
+        loss_rl = rl_loss(policy, model, buffers, cfg, rng)                                        # lines 9-16
         loss = loss_rl
         if il_weight > 0 and demo_data:                                                            # line 17
             loss_il, entropy = il_loss(policy, demo_data, cfg, rng)                                # line 18
@@ -610,8 +576,6 @@ def optimize_policy(policy: ModularPolicy, model, data: dict[str, Trajectories],
             lr_rule.revert()                                  # a non-finite loss or gradient: never step on it
             continue
         rl_values.append(loss_rl.item())
-        if critic is not None:                                                              # not in the paper
-            critic_values.append(fit_critic(critic, critic_opt, rollouts, cfg))
         if k % cfg.update_rate == 0:                                                               # line 22
             for design, buffer in buffers.items():
                 refresh_buffer(buffer, policy, model, data[design], cfg, rng)                      # lines 23-24
@@ -620,9 +584,7 @@ def optimize_policy(policy: ModularPolicy, model, data: dict[str, Trajectories],
     model.requires_grad_(True)
     return {"rl_loss": float(np.mean(rl_values[-10:])) if rl_values else float("nan"),
             "il_loss": float(np.mean(il_values[-10:])) if il_values else None,
-            "validation_reward": lr_rule.last, "reverts": lr_rule.reverts, "lr": lr_rule.lr,
-            **({"critic_loss": float(np.mean(critic_values[-10:])) if critic_values else float("nan")}
-               if critic is not None else {})}
+            "validation_reward": lr_rule.last, "reverts": lr_rule.reverts, "lr": lr_rule.lr}
 
 
 def decay_il_weight(il_weight: float, cfg: Config) -> float:
@@ -713,7 +675,6 @@ class Run:
     iteration: int = 0               # last finished iteration (0: lines 1-2 and their evaluation)
     metrics: list = field(default_factory=list)   # one row per finished iteration, 0 included
     kept_return: float | None = None  # `keep_better`: the kept policy's return on its noiseless roll-outs
-    critic: ModularValue | None = None  # `critic`: V_psi, carried from one policy phase to the next
 
     def rng_state(self) -> dict:
         return {"numpy": self.rng.bit_generator.state, "torch": torch.get_rng_state()}
@@ -789,8 +750,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         data = {d: collect_random_rollouts(d, cfg, rng) for d in designs}                         # line 2
         log(f"line 2   random {'sine-wave' if cfg.random_waves else 'spline'} data: "
             f"{sum(len(d.actions) for d in data.values())} episodes")
-        run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng,
-                  critic=make_critic(cfg))
+        run = Run(cfg, policy, model, data, il_weight=cfg.il_weight if demo_data else 0.0, rng=rng)
         if uses_clone_data(cfg):                                                            # not in the paper
             run.kept_return = add_clone_rollouts(policy, data, cfg, rng)
             log(f"clone    roll-outs of the cloned policy added to T_train: return {run.kept_return:.2f}")
@@ -809,7 +769,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         # -- lines 4-5: model learning phase --
         fit_loss = train_model(model, data, cfg, rng, first=(i == 1))                              # line 5
         # -- lines 6-26: policy optimisation phase --
-        phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng, run.critic)   # lines 7-26
+        phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)               # lines 7-26
         # -- lines 27-29: data collection --
         new_data = add_policy_rollouts(policy, data, cfg, rng)                                     # lines 28-29
         if cfg.keep_better:                                                                        # not in the paper
@@ -878,51 +838,3 @@ def improvement_check(policy: ModularPolicy, previous: dict, new_data: dict[str,
         policy.load_state_dict(previous)
     return {"policy_return": value, "kept_new": keep}
 
-
-def make_critic(cfg: Config) -> ModularValue | None:
-    """V_psi(o, d) for `critic` (the modular value network of the PPO baseline, gnn.ModularValue,
-    frozen except in `fit_critic`); None without it (the paper)."""
-    return ModularValue(cfg.gnn).requires_grad_(False) if cfg.critic else None
-
-
-def bootstrapped_return(rewards: torch.Tensor, s_T: torch.Tensor, critic: ModularValue, graph,
-                        cfg: Config) -> torch.Tensor:
-    """sum_t gamma^t r_t + gamma^T V_psi(O(s~_T)), (B,): the T-step model return plus a learned
-    value of where the roll-out ends, so the policy gradient also values progress beyond the
-    horizon (SHAC, Xu et al. 2022; the lambda-returns of Dreamer, Hafner et al. 2020).
-    rewards: (T, B); s_T: (B, S).  The gradient flows into s_T through the model, not into V_psi."""
-    T = len(rewards)
-    discount = cfg.critic_gamma ** torch.arange(T, dtype=rewards.dtype)
-    return (discount[:, None] * rewards).sum(0) + cfg.critic_gamma ** T * critic(sim2d.observe(s_T, graph), graph)
-
-
-def td_lambda_targets(rewards: torch.Tensor, values: torch.Tensor, cfg: Config) -> torch.Tensor:
-    """TD(lambda) returns of a roll-out, (T, B): G_T = V(s_T),
-    G_t = r_t + gamma ((1 - lambda) V(s_t+1) + lambda G_t+1).  rewards (T, B), values (T + 1, B)."""
-    G, targets = values[-1], []
-    for t in reversed(range(len(rewards))):
-        G = rewards[t] + cfg.critic_gamma * ((1 - cfg.critic_lambda) * values[t + 1] + cfg.critic_lambda * G)
-        targets.append(G)
-    return torch.stack(targets[::-1])
-
-
-def fit_critic(critic: ModularValue, opt, rollouts: dict, cfg: Config) -> float:
-    """`critic_steps` Adam steps of the mean squared error between V_psi(O(s~_t)) and its
-    TD(lambda) targets (computed once, with V_psi before the steps) on every state but the last
-    of this policy step's model roll-outs, summed over designs (SHAC's critic update).
-    rollouts: design -> (states (T + 1, B, S), rewards (T, B)), detached.  Returns the last loss."""
-    batches = []
-    for design, (states, rewards) in rollouts.items():
-        graph = sim2d.design_graph(design)
-        obs = sim2d.observe(states.reshape(-1, states.shape[-1]), graph)                 # ((T + 1) B, ...)
-        with torch.no_grad():
-            targets = td_lambda_targets(rewards, critic(obs, graph).reshape(states.shape[:2]), cfg)
-        batches.append((graph, {k: v[:targets.numel()] for k, v in obs.items()}, targets.reshape(-1)))
-    critic.requires_grad_(True)
-    for _ in range(cfg.critic_steps):
-        loss = sum(((critic(obs, graph) - targets) ** 2).mean() for graph, obs, targets in batches)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-    critic.requires_grad_(False)
-    return loss.item()

@@ -82,10 +82,10 @@ def config_to_dict(cfg) -> dict:
 # docs/history/2026-12-class-run-budgets.md for bc_lr) and the value at which the
 # code they switched on did nothing: a run written with that value is today's algorithm.
 REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
-                  "random_knots": 10, "recent_data": 0.0,
+                  "critic": False, "random_knots": 10, "recent_data": 0.0,
                   "random_wave_share": 1.0, "wheel_splines": False, "random_wave_offset": 0.0,
                   "bc_lr": 1e-3}
-REMOVED_WITH_THEIR_SWITCH = ()   # parameters of a removed switch: they acted only with it on
+REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   # acted only with it on
 
 
 def config_from_dict(d: dict):
@@ -179,7 +179,6 @@ def save_checkpoint(out: Path, run) -> None:
         "config": cfg, "policy": run.policy.state_dict(), "model": run.model.state_dict(),
         "data": {d: {"states": t.states, "actions": t.actions} for d, t in run.data.items()},
         "il_weight": run.il_weight, "iteration": run.iteration, "kept_return": run.kept_return,
-        "critic": run.critic.state_dict() if run.critic is not None else None,
         "metrics": run.metrics, "rng": run.rng_state()}, p))
 
 
@@ -213,11 +212,8 @@ def restore_run(ckpt: dict, cfg, path: Path):
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}
-    critic = rlil.make_critic(cfg)                                    # made before the rng is restored
-    if critic is not None:
-        critic.load_state_dict(ckpt["critic"])
     return rlil.Run(cfg, policy, model, data, ckpt["il_weight"], rlil.Run.restore_rngs(ckpt["rng"]),
-                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"), critic)
+                    ckpt["iteration"], ckpt["metrics"], ckpt.get("kept_return"))
 
 
 def save_rollouts(out: Path, run) -> None:
