@@ -64,8 +64,8 @@ def main(argv=None) -> int:
         parser.error(f"--seeds takes 0 to {rlil.MAX_SEED}")
     rows = []
     for seed in args.seeds:
-        rows.append(clone_row(dataclasses.replace(cfg, seed=seed)))
-        r = rows[-1]
+        r = clone_row(dataclasses.replace(cfg, seed=seed))
+        rows.append(r)
         print(f"seed {seed}: the clone covers {r['distance_m']:.2f} m, {r['flipped']} of {r['starts']} starts flipped",
               flush=True)
     print(f"{sum(r['flipped'] > 0 for r in rows)} of {len(rows)} clones flip from some start; "
