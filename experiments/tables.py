@@ -567,9 +567,11 @@ def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, m
                for i in range(1, 16)}
         worst = max(gap, key=gap.get)
         kept = np.mean([rows[i]["kept_new"] for rows in runs.values() for i in range(2, 16)])
+        steps = [rows[i]["kept_step"] for rows in runs.values() for i in range(2, 16) if "kept_step" in rows[i]]
+        part = f" ({np.mean([0 < k < 1 for k in steps]):.0%} a half or a quarter step)" if steps else ""  # --improvement-tries
         falls = {s: largest_fall(run_curve(rows), 15, first=0) for s, rows in runs.items()}
         falling = ", ".join(str(s) for s, f in falls.items() if f > FALL_M) or "none"
-        lines.append(f"| {variant} | {len(runs)} | {gap[1]:+.2f} | {gap[worst]:+.2f} ({worst}) | {kept:.0%} "
+        lines.append(f"| {variant} | {len(runs)} | {gap[1]:+.2f} | {gap[worst]:+.2f} ({worst}) | {kept:.0%}{part} "
                      f"| {max(falls.values()):.2f} | {falling} |")
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
@@ -590,9 +592,11 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk_noise06": ("the walk with twice the noise on lines 28-29's noisy half (--policy-noise-std 0.6)",
                      ("panel_c_candidates/walk_noise06", "leg_leg_wheel-rl")),
     "walk_critic": ("the walk with a critic bootstrapping the T-step model return (--critic on, since removed; dd12ede has it)",
-                    ("panel_c_candidates/walk_critic", "leg_leg_wheel-rl"))}
+                    ("panel_c_candidates/walk_critic", "leg_leg_wheel-rl")),
+    "walk_tries3": ("the walk with a line search in the improvement check: the step, its half, its quarter (--improvement-tries 3)",
+                    ("panel_c_candidates/walk_tries3", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd",
-                 "walk_critic": "walk_amd"}      # a candidate: its ablation row, run on the same machine
+                 "walk_critic": "walk_amd", "walk_tries3": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_line(results: Path, iters: int = 5):
@@ -904,7 +908,7 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             if table:
                 tables[results / "plain_rl_panel_a_mix.md"] = table
             for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise"),   # against the walk, one CPU
-                                  ("walk_critic", "critic")):
+                                  ("walk_critic", "critic"), ("walk_tries3", "tries")):
                 table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
                 if table:                                                                     # (AMD AVX512)
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
