@@ -144,10 +144,6 @@ class Config:
     than the kept one's, minus improvement_margin; off = the paper"""
     improvement_margin: float = 0.0
     """with keep_better: return (about metres per episode) a new policy may lose and still be kept; 0-2"""
-    improvement_tries: int = 1
-    """with keep_better: policies the check tries before it reverts: the new one, then points half,
-    a quarter, ... of the way from the kept one to it (TRPO's backtracking line search), each run
-    in the simulator like line 28's noiseless roll-outs, which join T_train; 1 = revert at once"""
     random_waves: bool = False
     """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
     episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
@@ -314,22 +310,15 @@ class PolicyActor:
         return a if self.noise is None else a + self.noise[:, t]
 
 
-def noiseless_rollouts(policy: ModularPolicy, design: str, cfg: Config, rng: np.random.Generator) -> Trajectories:
-    """`policy_episodes` episodes of the policy's mean action from the simulator's perturbed starts."""
-    graph, n = sim2d.design_graph(design), cfg.policy_episodes
-    return Trajectories.from_episodes(sim2d.simulate(graph, PolicyActor(policy, design, n), n, cfg.episode_steps,
-                                                     seed=new_seed(rng)))
-
-
 def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
                             rng: np.random.Generator) -> Trajectories:
     """Algorithm 1 line 28 (Sec. III-H): the policy without noise, then with time-correlated
     noise (the spline noise of Sec. III-B with the smaller std `policy_noise_std`)."""
     graph, n, steps = sim2d.design_graph(design), cfg.policy_episodes, cfg.episode_steps
-    clean = noiseless_rollouts(policy, design, cfg, rng)
+    clean = sim2d.simulate(graph, PolicyActor(policy, design, n), n, steps, seed=new_seed(rng))
     noise = sim2d.random_spline_actions(rng, n, graph.action_dim, steps, std=cfg.policy_noise_std)  # (n, T, A)
     noisy = sim2d.simulate(graph, PolicyActor(policy, design, n, noise), n, steps, seed=new_seed(rng))
-    return clean + Trajectories.from_episodes(noisy)
+    return Trajectories.from_episodes(clean) + Trajectories.from_episodes(noisy)
 
 
 def add_policy_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cfg: Config,
@@ -789,9 +778,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         run.iteration = i
         # -- evaluation in the simulator (Sec. IV), not part of Algorithm 1 --
         row = evaluate_iteration(policy, model, designs, cfg, i)
-        extra = sum(r.get("check_sim_steps", 0) for r in run.metrics) + phase.get("check_sim_steps", 0)
         record(run, {**row, "il_weight": il_weight, "model_loss": fit_loss, **phase,
-                     "sim_steps": sim_steps(cfg, i) + extra, "seconds": time.perf_counter() - t0}, log)
+                     "sim_steps": sim_steps(cfg, i), "seconds": time.perf_counter() - t0}, log)
         log(f"iter {i}  model loss {fit_loss:.4f}; policy: RL loss {phase['rl_loss']:.3f}, "
             f"{phase['reverts']} reverts, lr {phase['lr']:.1e}; {row['distance_m']:.2f} m "
             f"(min {row['distance_min_m']:.2f}, max {row['distance_max_m']:.2f}) in {cfg.eval_steps} steps"
@@ -799,8 +787,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
             f"first {cfg.horizon} steps: model {row['model_progress_m']:.2f} m, "
             f"simulator {row['sim_progress_m']:.2f} m, model replaying the simulator's actions "
             f"off by {row['model_path_error_m']:.2f} m"
-            + ("; kept the previous policy" if phase.get("kept_new") is False else "")
-            + (f"; kept {phase['kept_step']:g} of the step" if 0 < phase.get("kept_step", 1) < 1 else ""))
+            + ("; kept the previous policy" if phase.get("kept_new") is False else ""))
         if on_iteration:
             on_iteration(run)
     return run
@@ -839,28 +826,15 @@ def improvement_check(policy: ModularPolicy, previous: dict, new_data: dict[str,
                       run: Run, cfg: Config) -> dict:
     """Keep the new policy only if its real return (`policy_return`, on line 28's noiseless
     roll-outs, which the algorithm collects anyway) is at least the kept policy's minus
-    `improvement_margin`; otherwise, with `improvement_tries` > 1, try points half, a quarter, ...
-    of the way from the kept weights to the new ones (their noiseless roll-outs join T_train), and
-    load the previous policy back if none passes.  The new data stay in T_train, so the next model
-    learns where it was wrong.  The acceptance test of TRPO's line search (Schulman et al. 2015)
-    and ME-TRPO's policy validation (Kurutach et al. 2018), measured in the simulator.  Returns the
-    row's figures: the new policy's return, whether (a step towards) it was kept, the share of the
-    step kept, and the simulator steps the tries took."""
+    `improvement_margin`; otherwise load the previous policy back.  The new data stay in T_train,
+    so the next model learns where it was wrong.  The acceptance test of TRPO's line search
+    (Schulman et al. 2015) and ME-TRPO's policy validation (Kurutach et al. 2018), measured in
+    the simulator.  Returns the row's figures: the new policy's return and whether it was kept."""
     value = policy_return(new_data, cfg)
-    passes = lambda v: run.kept_return is None or v >= run.kept_return - cfg.improvement_margin
-    tries, step, tried_value, extra = 1, 1.0, value, 0
-    new = {k: v.clone() for k, v in policy.state_dict().items()} if cfg.improvement_tries > 1 else None
-    while not passes(tried_value) and tries < cfg.improvement_tries:      # TRPO's backtracking: halve the step
-        tries, step = tries + 1, step / 2
-        policy.load_state_dict({k: previous[k] + step * (new[k] - previous[k]) for k in new})
-        tried = {d: noiseless_rollouts(policy, d, cfg, run.rng) for d in run.data}
-        for design, traj in tried.items():
-            run.data[design] = run.data[design] + traj                       # T_train U the try's roll-outs
-        tried_value, extra = policy_return(tried, cfg), extra + cfg.policy_episodes * cfg.episode_steps * len(tried)
-    keep = passes(tried_value)
+    keep = run.kept_return is None or value >= run.kept_return - cfg.improvement_margin
     if keep:
-        run.kept_return = tried_value
+        run.kept_return = value
     else:
         policy.load_state_dict(previous)
-    row = {"policy_return": value, "kept_new": keep}
-    return row if cfg.improvement_tries == 1 else {**row, "kept_step": step if keep else 0.0, "check_sim_steps": extra}
+    return {"policy_return": value, "kept_new": keep}
+

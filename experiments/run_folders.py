@@ -78,13 +78,13 @@ def config_to_dict(cfg) -> dict:
 
 
 # Settings that left the code (docs/history/2026-11-ablations.md, "Removed mechanisms", and
-# docs/history/2026-12-plain-rl-diagnosis.md for recent_data,
+# docs/history/2026-12-plain-rl-diagnosis.md for recent_data and improvement_tries,
 # docs/history/2026-12-class-run-budgets.md for bc_lr) and the value at which the
 # code they switched on did nothing: a run written with that value is today's algorithm.
 REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
                   "critic": False, "random_knots": 10, "recent_data": 0.0,
                   "random_wave_share": 1.0, "wheel_splines": False, "random_wave_offset": 0.0,
-                  "bc_lr": 1e-3}
+                  "bc_lr": 1e-3, "improvement_tries": 1}
 REMOVED_WITH_THEIR_SWITCH = ("critic_gamma", "critic_lambda", "critic_steps")   # acted only with it on
 
 

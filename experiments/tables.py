@@ -593,7 +593,7 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
                      ("panel_c_candidates/walk_noise06", "leg_leg_wheel-rl")),
     "walk_critic": ("the walk with a critic bootstrapping the T-step model return (--critic on, since removed; dd12ede has it)",
                     ("panel_c_candidates/walk_critic", "leg_leg_wheel-rl")),
-    "walk_tries3": ("the walk with a line search in the improvement check: the step, its half, its quarter (--improvement-tries 3)",
+    "walk_tries3": ("the walk with a line search in the improvement check: the step, its half, its quarter (--improvement-tries 3, since removed; 1c80801 has it)",
                     ("panel_c_candidates/walk_tries3", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd",
                  "walk_critic": "walk_amd", "walk_tries3": "walk_amd"}      # a candidate: its ablation row, run on the same machine

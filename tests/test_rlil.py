@@ -620,52 +620,6 @@ def test_improvement_check_keeps_the_previous_policy_when_the_new_one_returns_le
         assert run.kept_return == (value if expect_keep else kept)
 
 
-@pytest.mark.parametrize("returns, expect_step", [((0.0, 2.0), 0.5), ((0.0, 0.0, 1.5), 0.25), ((0.0, 0.0, 0.0), 0.0)])
-def test_improvement_tries_backtrack_towards_the_kept_policy(car_data, monkeypatch, returns, expect_step):
-    """--improvement-tries 3: a new policy that returns less than the kept one (1.0) is not
-    reverted at once: the weights half, then a quarter of the way from the kept ones to it are
-    run in the simulator, the first that passes is kept (its return the new reference), and the
-    previous policy comes back only when none does.  Every try's noiseless roll-outs join T_train
-    and count as simulator steps.  Fails when the check does not try, does not halve the step, or
-    drops the tries' data."""
-    cfg = tiny(policy_episodes=3, improvement_tries=3)
-    script = iter(returns)
-    monkeypatch.setattr(rlil, "policy_return", lambda new_data, cfg: next(script))
-    rlil.seed_everything(0)
-    previous = copy.deepcopy(rlil.ModularPolicy(cfg.gnn).state_dict())
-    rlil.seed_everything(1)
-    policy = rlil.ModularPolicy(cfg.gnn)
-    new = copy.deepcopy(policy.state_dict())
-    data = {"wnwwnw": car_data["wnwwnw"]}
-    run = rlil.Run(cfg, policy, None, data, 0.0, np.random.default_rng(0), kept_return=1.0)
-    out = rlil.improvement_check(policy, previous, {}, run, cfg)
-    tries = len(returns) - 1
-    assert out == {"policy_return": 0.0, "kept_new": expect_step > 0, "kept_step": expect_step,
-                   "check_sim_steps": tries * cfg.policy_episodes * cfg.episode_steps}
-    for k in new:
-        torch.testing.assert_close(policy.state_dict()[k], previous[k] + expect_step * (new[k] - previous[k]))
-    assert run.kept_return == (returns[-1] if expect_step else 1.0)
-    assert len(run.data["wnwwnw"].actions) == len(car_data["wnwwnw"].actions) + tries * cfg.policy_episodes
-    tried = run.data["wnwwnw"].actions[-cfg.policy_episodes:]            # the last try's own roll-outs
-    assert not torch.equal(tried, car_data["wnwwnw"].actions[-cfg.policy_episodes:])
-
-
-def test_algorithm1_counts_the_tries_simulator_steps(monkeypatch):
-    """Inside Algorithm 1 with --improvement-tries 2: a rejected iteration's try adds its episodes
-    to T_train and its steps to the row's sim_steps, from then on.  Returns scripted: 1, then 0 and
-    0.5 (rejected, no step kept), then 2."""
-    returns = iter([1.0, 0.0, 0.5, 2.0])
-    monkeypatch.setattr(rlil, "policy_return", lambda new_data, cfg: next(returns))
-    cfg = smoke(train=("car",), iters=3, policy_episodes=2, keep_better=True, improvement_tries=2)
-    run = rlil.algorithm1(cfg, {}, log=quiet)
-    assert [row.get("kept_step") for row in run.metrics] == [None, 1.0, 0.0, 1.0]
-    try_steps = cfg.policy_episodes * cfg.episode_steps
-    assert [row["sim_steps"] for row in run.metrics] == [rlil.sim_steps(cfg, 0), rlil.sim_steps(cfg, 1),
-                                                         rlil.sim_steps(cfg, 2) + try_steps,
-                                                         rlil.sim_steps(cfg, 3) + try_steps]
-    assert len(run.data["wnwwnw"].actions) == cfg.random_episodes + 3 * 2 * cfg.policy_episodes + cfg.policy_episodes
-
-
 def test_algorithm1_with_keep_better_continues_from_the_kept_policy(tmp_path, monkeypatch):
     """Inside Algorithm 1: an iteration whose policy returns less ends with the policy it started
     from (its data still added to T_train), the next phase starts there, and a checkpoint keeps
