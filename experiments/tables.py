@@ -657,19 +657,25 @@ SEED_RATE_RUNS = {     # one setting's runs on several machines and seeds: (run 
     "the main command (RL+IL, leg_none_wheel, the defaults)": ("leg_none_wheel-hexapod_car", (
         ("figure3_runs", "Intel Xeon, AVX512 (the committed Figure 3's machine)"),
         ("budget_screen_runs/defaults", "seeds 0-2, 5, 6 on an AVX2 machine, 3, 4, 7-9 on an AMD EPYC"),
-        ("seed_rate_runs/main_command", "Intel Xeon, AVX512 with AMX")))}
+        ("seed_rate_runs/main_command", "Intel Xeon, AVX512 with AMX"))),
+    "the walk, plain RL, hexapod": ("hexapod-rl", (      # the committed figure's AVX2 runs give walk_amd's digits
+        ("panel_a_candidates/walk_amd", "AMD EPYC, AVX512 (the committed figure's AVX2 machine: the same digits)"),
+        ("seed_rate_runs/walk_panel_a", "AMD EPYC, AVX512")))}
 # What a seed may do, the issue's mark on 10 seeds, and the chance that 10 seeds at rate p pass it:
-# (runs of SEED_RATE_RUNS, what, does(rows, line), mark, chance(p)); `line` is panel (c)'s; 5 iterations.
+# (runs of SEED_RATE_RUNS, what, does(rows, line), mark, chance(p), iterations); `line` is panel (c)'s.
 SEED_RATE_EVENTS = (
     ("the walk, plain RL, leg_leg_wheel", "converges by iteration 5 (panel (c)'s line, {line:.2f} m)",
      lambda rows, line: any(r["distance_m"] >= line for r in rows[1:6]),
-     "#34: 8 or more of 10", lambda p: stats.chance_of_at_least(8, 10, p)),
+     "#34: 8 or more of 10", lambda p: stats.chance_of_at_least(8, 10, p), 5),
     ("the main command (RL+IL, leg_none_wheel, the defaults)", "is under 15 m at an iteration from 2 on",
      lambda rows, line: lowest_from_iteration_2(rows) < 15.0,
-     "#33's rule: none of 10", lambda p: (1 - p) ** 10),
+     "#33's rule: none of 10", lambda p: (1 - p) ** 10, 5),
     ("the main command (RL+IL, leg_none_wheel, the defaults)", f"falls by more than {FALL_M:.0f} m between two "
      "iterations, from iteration 0 on", lambda rows, line: largest_fall(run_curve(rows), 5, first=0) > FALL_M,
-     "#34: none of 10", lambda p: (1 - p) ** 10))
+     "#34: none of 10", lambda p: (1 - p) ** 10, 5),
+    ("the walk, plain RL, hexapod", "is at 10 m or more at iteration 15 (panel (a))",
+     lambda rows, line: rows[15]["distance_m"] >= 10.0,
+     "#34: 7 or more of 10", lambda p: stats.chance_of_at_least(7, 10, p), 15))
 
 
 def seed_rate_table(results: Path) -> str:
@@ -681,23 +687,52 @@ def seed_rate_table(results: Path) -> str:
     if line is None:
         return ""
     blocks = []
-    for setting, what, does, mark, chance in SEED_RATE_EVENTS:
+    for setting, what, does, mark, chance, iters in SEED_RATE_EVENTS:
         pattern, folders = SEED_RATE_RUNS[setting]
         lines = [f"**{setting}: a seed {what.format(line=line)}** (the mark: {mark})", "",
                  "| runs | seeds | seeds that do | rate [95 % Wilson CI] | chance that 10 seeds meet the mark |",
                  "|---|---|---|---|---|"]
         hits, n = 0, 0
         for folder, machine in folders:
-            runs = seed_runs(results / folder, pattern, finished=5)
+            runs = seed_runs(results / folder, pattern, finished=iters)
             if not runs:
                 continue
             these = [s for s, rows in runs.items() if does(rows, line)]
             hits, n = hits + len(these), n + len(runs)
             lines.append(f"| {machine} (`results/{folder}`) | {seed_span(list(runs))} | {', '.join(map(str, these)) or 'none'} "
                          f"| {rate_cell(len(these), len(runs))} | {chance(len(these) / len(runs)):.2f} |")
-        lines.append(f"| all | {n} runs | {hits} | {rate_cell(hits, n)} | {chance(hits / n):.2f} |")
+        if n:
+            lines.append(f"| all | {n} runs | {hits} | {rate_cell(hits, n)} | {chance(hits / n):.2f} |")
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks) + "\n"
+
+
+PAIRED_CANDIDATES = ("walk_offset10", "walk_noise06", "walk_critic", "walk_tries3")   # panel (a), against walk_amd
+
+
+def panel_a_pairing_table(folder: Path, baseline: str = "walk_amd", z: float = 1.96, resolve_m: float = 2.0) -> str:
+    """Markdown of how much "the same seeds" pairs a panel (a) candidate with its baseline (issue
+    #34, part 18): per candidate of PAIRED_CANDIDATES, on the seeds both finished (15 iterations),
+    the correlation over seeds of their distances at iteration 15, each one's standard deviation,
+    that of the paired differences, and the seeds a paired screen needs for its 95 % interval to
+    be +-`resolve_m` wide (z sd / sqrt(n) = resolve_m).  "" without the baseline's runs."""
+    def finals(variant):
+        return {s: rows[15]["distance_m"] for s, rows in seed_runs(folder / variant, finished=15).items()}
+
+    base = finals(baseline)
+    lines = [f"| candidate | seeds | correlation with {baseline} | sd, candidate (m) | sd, {baseline} (m) "
+             f"| sd of the differences (m) | seeds for a 95 % interval of +-{resolve_m:g} m |",
+             "|---|---|---|---|---|---|---|"]
+    for variant in PAIRED_CANDIDATES:
+        own = finals(variant)
+        seeds = sorted(set(own) & set(base))
+        if len(seeds) < 3:
+            continue
+        x, y = np.array([own[s] for s in seeds]), np.array([base[s] for s in seeds])
+        sd_d = np.std(x - y, ddof=1)
+        lines.append(f"| {variant} | {len(seeds)} | {np.corrcoef(x, y)[0, 1]:+.2f} | {np.std(x, ddof=1):.2f} "
+                     f"| {np.std(y, ddof=1):.2f} | {sd_d:.2f} | {math.ceil((z * sd_d / resolve_m) ** 2)} |")
+    return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
 def rate_cell(k: int, n: int) -> str:
@@ -907,6 +942,9 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = plain_rl_same_cpu_table(results / "panel_a_candidates", ("walk_mix05",), baseline="walk_avx512")
             if table:
                 tables[results / "plain_rl_panel_a_mix.md"] = table
+            table = panel_a_pairing_table(results / "panel_a_candidates")
+            if table:
+                tables[results / "panel_a_pairing.md"] = table
             for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise"),   # against the walk, one CPU
                                   ("walk_critic", "critic"), ("walk_tries3", "tries")):
                 table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
