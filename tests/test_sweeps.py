@@ -8,6 +8,7 @@ change them (so the check can fail).  Figure 3's reuse of finished runs is
 tested in test_rlil.py, the sample-efficiency sweep in test_ppo.py.
 """
 import csv
+import json
 import shutil
 import subprocess
 
@@ -516,3 +517,22 @@ def test_the_flattery_curve_table_reads_each_variants_seed_csvs(tmp_path):
     assert table.startswith("**walk_hexapod**") and "offset10" not in table
     assert "| hexapod | 0 | 20 | 2 | +1.50 | +0.00 | +1.50, +1.00 - +2.00 |" in table
     assert tables.flattery_curve_table(tmp_path / "none") == ""
+
+
+def test_panel_a_pairing_table_reads_how_much_the_seeds_pair(tmp_path):
+    """tables.panel_a_pairing_table: a candidate that moves every seed of the baseline by the same
+    metres pairs perfectly (correlation +1, no spread of the differences, no seeds needed beyond
+    what any screen has); one that reverses the seeds' order pairs against them, and the seeds a
+    screen needs follow from the differences' spread: (1.96 x 10 m / 2 m)^2, rounded up = 97."""
+    def write(variant, finals):
+        for seed, final in enumerate(finals):
+            path = tmp_path / variant / f"hexapod-rl-seed{seed}" / "metrics.json"
+            path.parent.mkdir(parents=True)
+            path.write_text(json.dumps({"iterations": [{"iteration": i, "distance_m": final * i / 15} for i in range(16)]}))
+    write("walk_amd", [5.0, 10.0, 15.0])
+    write("walk_noise06", [6.0, 11.0, 16.0])
+    write("walk_critic", [15.0, 10.0, 5.0])
+    rows = {line.split(" | ")[0].strip("| "): line.split(" | ") for line in tables.panel_a_pairing_table(tmp_path).splitlines()[2:]}
+    assert set(rows) == {"walk_noise06", "walk_critic"}
+    assert rows["walk_noise06"][2:] == ["+1.00", "5.00", "5.00", "0.00", "0 |"]
+    assert rows["walk_critic"][2:] == ["-1.00", "5.00", "5.00", "10.00", "97 |"]
