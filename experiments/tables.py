@@ -701,9 +701,9 @@ def seed_rate_table(results: Path) -> str:
             hits, n = hits + len(these), n + len(runs)
             lines.append(f"| {machine} (`results/{folder}`) | {seed_span(list(runs))} | {', '.join(map(str, these)) or 'none'} "
                          f"| {rate_cell(len(these), len(runs))} | {chance(len(these) / len(runs)):.2f} |")
-        if n:
+        if n:                                                   # a setting without finished runs: no block
             lines.append(f"| all | {n} runs | {hits} | {rate_cell(hits, n)} | {chance(hits / n):.2f} |")
-        blocks.append("\n".join(lines))
+            blocks.append("\n".join(lines))
     return "\n\n".join(blocks) + "\n"
 
 

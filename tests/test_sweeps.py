@@ -449,6 +449,14 @@ def test_the_seed_rate_table_counts_converged_fallen_and_falling_seeds_with_thei
     assert table[13] == "| all | 2 runs | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.00 |"
     assert "falls by more than 3 m" in table[15] and table[20] == "| all | 2 runs | 2 | 2 of 2: 1.00 [0.34, 1.00] | 0.00 |"
     assert len(table) == 21 and tables.seed_rate_table(tmp_path / "nothing") == ""
+    run("seed_rate_runs/walk_panel_a", "hexapod-rl", 10, [0] * 15 + [10.0])     # panel (a): 10 m at 15
+    run("seed_rate_runs/walk_panel_a", "hexapod-rl", 11, [0] * 9 + [12] + [9.99] * 6)   # not at 15
+    run("seed_rate_runs/walk_panel_a", "hexapod-rl", 12, [0] * 15)                 # unfinished: left out
+    table = tables.seed_rate_table(tmp_path).splitlines()
+    assert table[22] == ("**the walk, plain RL, hexapod: a seed is at 10 m or more at iteration 15 (panel (a))** "
+                         "(the mark: #34: 7 or more of 10)")
+    assert table[26].endswith("(`results/seed_rate_runs/walk_panel_a`) | 10-11 | 10 | 1 of 2: 0.50 [0.09, 0.91] | 0.17 |")
+    assert len(table) == 28
 
 
 def test_the_walk_rlil_ablation_pairs_each_seed_with_its_own_cpus_walk_run(tmp_path):
