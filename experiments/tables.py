@@ -495,6 +495,11 @@ def plain_rl_budget_table(root: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def finals_at_15(folder: Path) -> dict:
+    """{seed: distance at iteration 15} of the finished 15-iteration runs in `folder` (panel (a))."""
+    return {s: rows[15]["distance_m"] for s, rows in seed_runs(folder, finished=15).items()}
+
+
 SAME_CPU = ("data16_stdmin10", "data16_stdmin05", "data16_recent05", "data16_waves", "data16_waves_stdmin10")   # variants read against data16 on their CPU (AVX2)
 
 
@@ -504,15 +509,12 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
     (15 iterations): seeds at 10 m at iteration 15, the means at 15 with their 95 % bootstrap CIs,
     the difference of the means with its CI and verdict (stats.verdict: "holds" if above 0), and
     P(variant > baseline) with its CI.  "" when no variant shares a finished seed with the baseline."""
-    def finals(variant):
-        return {s: rows[15]["distance_m"] for s, rows in seed_runs(folder / variant, finished=15).items()}
-
-    base = finals(baseline)
+    base = finals_at_15(folder / baseline)
     lines = [f"| variant | seeds | at 10 m by 15 | mean at 15 (m) [95 % CI] | {baseline}, same seeds (m) "
              "| difference (m) [95 % CI] | verdict | P(variant > baseline) [95 % CI] |",
              "|---|---|---|---|---|---|---|---|"]
     for variant in variants:
-        own = finals(variant)
+        own = finals_at_15(folder / variant)
         seeds = sorted(set(own) & set(base))
         if not seeds:
             continue
@@ -716,15 +718,12 @@ def panel_a_pairing_table(folder: Path, baseline: str = "walk_amd", z: float = 1
     the correlation over seeds of their distances at iteration 15, each one's standard deviation,
     that of the paired differences, and the seeds a paired screen needs for its 95 % interval to
     be +-`resolve_m` wide (z sd / sqrt(n) = resolve_m).  "" without the baseline's runs."""
-    def finals(variant):
-        return {s: rows[15]["distance_m"] for s, rows in seed_runs(folder / variant, finished=15).items()}
-
-    base = finals(baseline)
+    base = finals_at_15(folder / baseline)
     lines = [f"| candidate | seeds | correlation with {baseline} | sd, candidate (m) | sd, {baseline} (m) "
              f"| sd of the differences (m) | seeds for a 95 % interval of +-{resolve_m:g} m |",
              "|---|---|---|---|---|---|---|"]
     for variant in PAIRED_CANDIDATES:
-        own = finals(variant)
+        own = finals_at_15(folder / variant)
         seeds = sorted(set(own) & set(base))
         if len(seeds) < 3:
             continue

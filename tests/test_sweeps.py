@@ -304,7 +304,6 @@ def test_plan_commands_run_anywhere_and_collect_into_the_local_csv(local_sweep, 
 
 def test_the_30_iteration_table_counts_seeds_at_10_m_and_skips_unfinished_runs(tmp_path):
     """tables.plain_rl_30_table (issue #34, part 4) on made-up runs: seed s walks s + 0.5 m per iteration."""
-    import json
     for seed, iters in ((0, 30), (1, 30), (2, 20)):                  # seed 2 stopped at 20: left out
         (tmp_path / f"hexapod-rl-seed{seed}").mkdir()
         rows = [{"iteration": i, "distance_m": (seed + 0.5) * i, "seconds": 2.0} for i in range(iters + 1)]
@@ -319,7 +318,6 @@ def test_the_30_iteration_table_counts_seeds_at_10_m_and_skips_unfinished_runs(t
 def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     """tables.plain_rl_same_cpu_table (issue #34, parts 5-6) on made-up runs: only seeds that both the
     variant and the baseline finished (15 iterations) count, and a clear gain reads "holds"."""
-    import json
     def run(variant, seed, final, iters=15):
         (tmp_path / variant / f"hexapod-rl-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": final * i / iters} for i in range(iters + 1)]
@@ -345,7 +343,6 @@ def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_p
     iteration 1 and 0.2 m after, keeps every second new policy and falls 4 m from iteration 14 to 15;
     seed 1 is flattered by 0.2 m throughout, keeps none and falls 3.5 m from iteration 0 to 1; an
     unfinished run is left out."""
-    import json
     def run(seed, flattery, kept, fall_at=None, iters=15, start=0.0, where="v/hexapod-rl"):
         rows = [{"iteration": 0, "distance_m": start}]
         for i in range(1, iters + 1):
@@ -369,7 +366,6 @@ def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_p
 def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path):
     """tables.same_seed_area_table on made-up 5-iteration runs: the candidate walks 1 m more at
     every iteration on seeds 0 and 1; the baseline's seed 2 is unfinished and left out."""
-    import json
     def run(folder, seed, shift, iters=5):
         (tmp_path / folder / f"x-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": i + shift, "seconds": 10.0} for i in range(iters + 1)]
@@ -390,7 +386,6 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     both seeds and data16 never; data16's seed 1 is unfinished and left out of its row; a
     candidate (walk_wheel_splines) is compared with its ablation row (walk_amd), and the RL+IL
     runs in its folder are left out of its (plain RL) row."""
-    import json
     def run(folder, name, seed, curve):
         (tmp_path / "results" / folder / f"{name}-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": d, "seconds": 10.0} for i, d in enumerate(curve)]
@@ -425,7 +420,6 @@ def test_the_seed_rate_table_counts_converged_fallen_and_falling_seeds_with_thei
     the walk's three runs one converges; of the main command's, seed 1 is under 15 m at iteration 2
     and seed 0 only at iteration 1, which #33's rule does not count, while both fall by more than
     3 m (seed 0 from iteration 0 to 1, which #34's mark counts)."""
-    import json
     def run(folder, name, seed, curve):
         (tmp_path / folder / f"{name}-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": d, "seconds": 10.0} for i, d in enumerate(curve)]
@@ -463,7 +457,6 @@ def test_the_walk_rlil_ablation_pairs_each_seed_with_its_own_cpus_walk_run(tmp_p
     """tables.walk_rlil_ablation_table on made-up 15-iteration runs: seed 0's walk run comes from
     Figure 3's walk runs, seed 1's from walk_rlil_avx512, which replaces Figure 3's where both exist;
     seed 2 has no data16 run and is left out."""
-    import json
     def run(folder, seed, final, cpu="AVX2"):
         (tmp_path / folder / f"hexapod-hexapod-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": final if i == 15 else 1.0} for i in range(16)]
