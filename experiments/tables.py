@@ -32,7 +32,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 
 import modular_rlil_minimal as rlil                                               # noqa: E402
 import sim2d                                                                      # noqa: E402
-from experiments import flattery_curve, gradient_check, stats, transfer           # noqa: E402
+from experiments import flattery_curve, gradient_check, phase_probe, stats, transfer   # noqa: E402
 from experiments.run_folders import UsageError                                    # noqa: E402
 from experiments.stats import (area_under_curve, bootstrap_ci, bootstrap_diff_ci, interval, iqm,  # noqa: E402
                                probability_of_improvement, probability_of_improvement_ci, verdict)
@@ -596,9 +596,11 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk_critic": ("the walk with a critic bootstrapping the T-step model return (--critic on, since removed; dd12ede has it)",
                     ("panel_c_candidates/walk_critic", "leg_leg_wheel-rl")),
     "walk_tries3": ("the walk with a line search in the improvement check: the step, its half, its quarter (--improvement-tries 3, since removed; 1c80801 has it)",
-                    ("panel_c_candidates/walk_tries3", "leg_leg_wheel-rl"))}
+                    ("panel_c_candidates/walk_tries3", "leg_leg_wheel-rl")),
+    "walk_k480": ("the walk with K = 480 policy steps per iteration (--policy-steps 480)",
+                  ("panel_c_candidates/walk_k480", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd",
-                 "walk_critic": "walk_amd", "walk_tries3": "walk_amd"}      # a candidate: its ablation row, run on the same machine
+                 "walk_critic": "walk_amd", "walk_tries3": "walk_amd", "walk_k480": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_line(results: Path, iters: int = 5):
@@ -709,7 +711,7 @@ def seed_rate_table(results: Path) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
-PAIRED_CANDIDATES = ("walk_offset10", "walk_noise06", "walk_critic", "walk_tries3")   # panel (a), against walk_amd
+PAIRED_CANDIDATES = ("walk_offset10", "walk_noise06", "walk_critic", "walk_tries3", "walk_k480")   # panel (a), against walk_amd
 
 
 def panel_a_pairing_table(folder: Path, baseline: str = "walk_amd", z: float = 1.96, resolve_m: float = 2.0) -> str:
@@ -945,7 +947,7 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             if table:
                 tables[results / "panel_a_pairing.md"] = table
             for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise"),   # against the walk, one CPU
-                                  ("walk_critic", "critic"), ("walk_tries3", "tries")):
+                                  ("walk_critic", "critic"), ("walk_tries3", "tries"), ("walk_k480", "k480")):
                 table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
                 if table:                                                                     # (AMD AVX512)
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
@@ -982,6 +984,10 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
         with made_from(" and ".join(map(str, probes))):
             tables[results / "gradient_check.md"] = gradient_check.summary(
                 [r for path in probes for r in read_rows_csv(path)])
+    probes = sorted((results / "phase_probe").glob("*.csv"))    # experiments/phase_probe.py
+    if probes:
+        with made_from(results / "phase_probe"):
+            tables[results / "phase_probe.md"] = phase_probe.summary([r for path in probes for r in read_rows_csv(path)])
     for name in ("side_by_side", "side_by_side_fine"):   # experiments/side_by_side.py (fine: --ppo-eval-every)
         if not (results / f"{name}.csv").exists():
             continue

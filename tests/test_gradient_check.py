@@ -107,3 +107,61 @@ def test_clone_flips_bad_flags_are_one_line(argv, message, capsys):
         clone_flips.main(argv)
     err = capsys.readouterr().err.strip().splitlines()
     assert e.value.code == 2 and message in err[-1]
+
+
+def test_the_phase_probe_starts_where_the_run_is_and_runs_a_phase():
+    """experiments/phase_probe.py: the starting policy is the run's own after `after` iterations
+    (its distance is the run's row; here after 0, the untrained policy), each variant's phase moves the policy, the repeats of one
+    variant draw differently, and the start sampler is Algorithm 1's again afterwards."""
+    from experiments import phase_probe as pp
+    sampler = rlil.sample_sim_states
+    cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1, seed=2)
+    rows = pp.probe_rows("car", 2, 0, ["K120", "B_ps"], repeats=2, base=cfg)
+    assert len(rows) == 4 and set(rows[0]) == set(pp.COLUMNS)
+    assert rlil.sample_sim_states is sampler
+    run = rlil.algorithm1(cfg, {}, log=lambda m: None).metrics[0]
+    assert rows[0]["start_m"] == run["distance_m"]
+    assert all(r["distance_m"] != r["start_m"] for r in rows)
+    assert rows[0]["validation_reward"] != rows[1]["validation_reward"]
+    assert "| car, 2, 0 (" in pp.summary(rows)
+
+
+def test_the_phase_probe_table_reads_its_csv(tmp_path):
+    """results/phase_probe.md (tables.py) is `summary` of the CSVs as read back: columns in
+    VARIANTS' order whatever the CSV's, a missing cell "-", two starting points two rows."""
+    from experiments import phase_probe as pp
+    from experiments.sweeps import write_rows_csv
+    from experiments.tables import read_rows_csv
+    rows = [{"design": "hexapod", "seed": seed, "after": 4, "start_m": 0.25, "variant": v, "repeat": r,
+             "distance_m": d + r, "reverts": 0, "validation_reward": 0.5}
+            for seed, v, d in ((0, "K480", 4.0), (0, "K120", 0.2), (1, "K120", 0.1)) for r in range(2)]
+    write_rows_csv(tmp_path / "probe.csv", pp.COLUMNS, rows)
+    table = pp.summary(read_rows_csv(tmp_path / "probe.csv"))
+    assert table == pp.summary(rows)
+    assert table.splitlines()[0] == "| design, seed, after (start, m) | K120 | K480 |"
+    assert table.splitlines()[2:] == ["| hexapod, 0, 4 (0.25) | 0.20, 1.20 | 4.00, 5.00 |",
+                                      "| hexapod, 1, 4 (0.25) | 0.10, 1.10 | - |"]
+
+
+def test_the_phase_probe_draws_a_share_of_the_starts_from_p_s():
+    """`starts_from_p_s(share)`: the first share of the states are p(s)'s (at rest within the
+    perturbation of sim2d.sample_initial_states), the rest come from T_train."""
+    from experiments import phase_probe as pp
+    import sim2d
+    cfg = rlil.preset("tiny", train=("car",))
+    traj = rlil.collect_random_rollouts("wnwwnw", cfg, np.random.default_rng(0))
+    s = pp.starts_from_p_s(0.5)(traj, 8, np.random.default_rng(1))
+    speed = s[:, 3:5].abs().max(1).values
+    assert s.shape == (8, traj.states.shape[-1]) and s.dtype == traj.states.dtype
+    assert bool((speed[:4] <= sim2d.INIT_BODY_VEL).all()) and not bool((speed[4:] <= sim2d.INIT_BODY_VEL).all())
+
+
+@pytest.mark.parametrize("argv, message", [(["--variants", "K9"], "unknown variant 'K9'"),
+                                           (["--repeats", "0"], "--repeats takes 1 to 100"),
+                                           (["--design", "tank"], "tank")])
+def test_phase_probe_bad_flags_are_one_line(argv, message, capsys):
+    from experiments import phase_probe as pp
+    with pytest.raises(SystemExit) as e:
+        pp.main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and message in err[-1]

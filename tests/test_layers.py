@@ -27,7 +27,7 @@ LAYERS = [
     ["experiments.stats", "experiments.run_folders"],
     ["experiments.sweeps", "experiments.transfer", "experiments.tables", "experiments.diagnosis",
      "experiments.gradient_check", "experiments.side_by_side", "experiments.model_replay", "experiments.flattery_curve",
-     "experiments.clone_flips",
+     "experiments.clone_flips", "experiments.phase_probe",
      "tools.bench", "tools.check_physics", "tools.mutations"],
     ["train"],
     ["lesson.grade", "lesson.lesson", "lesson.exercises.ex1_reward", "lesson.exercises.ex2_message_passing",

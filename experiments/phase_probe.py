@@ -1,0 +1,154 @@
+"""One policy phase from a stalled starting point, with one setting changed: does the policy move?
+
+Issue #34, part 20.  Before a plain-RL seed of the walk takes off, its policy phases almost never
+revert (the model's validation return never falls below the phase's start), yet the policy stays
+where it is.  This takes plain RL's policy, model and T_train at the start of a policy phase
+(`--after` finished iterations, then line 5's model fit: `gradient_check.starting_point`, the
+run's own path), runs one policy phase (lines 7-26) with one setting changed, and measures the
+result in the simulator by Sec. IV's metric (distance in `eval_steps` steps from the evaluation
+starts, the mean action).  Each repeat starts from the same policy and model with draws of its own
+(buffer, noise), so a variant's repeats show its spread.
+
+    python experiments/phase_probe.py --preset walk --seeds 0 --after 4                # every variant, 3 repeats
+    python experiments/phase_probe.py --preset walk --seeds 1 25 --after 4 --variants K120 K240 K480
+    python experiments/phase_probe.py --preset walk --seeds 0 --after 4 --out probe.csv
+
+Variants (VARIANTS): K, the phase's steps; T, the horizon; the learning rate; and where line 7
+draws the buffer's initial states: from T_train (Algorithm 1) or from the simulator's start
+distribution p(s) (`sim2d.sample_initial_states`), all or half of them.
+"""
+from __future__ import annotations
+
+import contextlib
+import copy
+import dataclasses
+import sys
+from pathlib import Path
+from unittest import mock
+
+import numpy as np
+import torch
+
+if __package__ in (None, ""):              # run as a script: the stage files are one folder up
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import modular_rlil_minimal as rlil                                                          # noqa: E402
+import sim2d                                                                                 # noqa: E402
+from experiments.gradient_check import starting_point                                        # noqa: E402
+from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.sweeps import write_rows_csv                                                # noqa: E402
+
+COLUMNS = ["design", "seed", "after", "start_m", "variant", "repeat", "distance_m", "reverts", "validation_reward"]
+
+# name: (Config fields changed, share of line 7's initial states drawn from p(s) instead of T_train)
+VARIANTS = {
+    "K120": ({}, 0.0),                                   # the phase as Algorithm 1 runs it (K = 120)
+    "K240": ({"policy_steps": 240}, 0.0),
+    "K480": ({"policy_steps": 480}, 0.0),
+    "T10": ({"horizon": 10}, 0.0),
+    "T40": ({"horizon": 40}, 0.0),
+    "lr3e-3": ({"policy_lr": 3e-3}, 0.0),
+    "B_ps": ({}, 1.0),
+    "B_ps_half": ({}, 0.5),
+}
+
+
+def starts_from_p_s(share: float):
+    """A stand-in for `rlil.sample_sim_states` that draws the first `share` of the n states from the
+    simulator's start distribution p(s) and the rest from T_train as Algorithm 1 does."""
+    from_data = rlil.sample_sim_states
+
+    def sample(traj, n: int, rng: np.random.Generator) -> torch.Tensor:
+        s = from_data(traj, n, rng)
+        k = int(round(share * n))
+        p_s = sim2d.sample_initial_states(sim2d.design_graph(traj.design), k, rng)
+        s[:k] = torch.as_tensor(p_s, dtype=s.dtype)
+        return s
+    return sample
+
+
+def distance(policy, design: str, cfg: rlil.Config) -> float:
+    """Sec. IV's metric, as a run's evaluation row has it."""
+    return float(rlil.evaluate_policy(policy, design, cfg, rlil.eval_seed(cfg)).distance_m.mean())
+
+
+def probe_rows(design: str, seed: int, after: int, variants, repeats: int,
+               base: rlil.Config | None = None) -> list[dict]:
+    """Every repeat's row (COLUMNS) for one design, seed and starting point."""
+    cfg = dataclasses.replace(base or rlil.Config(), train=(sim2d.parse_design(design),), demos=(), seed=seed)
+    policy, model, traj, _ = starting_point(cfg, after)
+    start = copy.deepcopy(policy.state_dict())
+    start_m = distance(policy, traj.design, cfg)
+    rows = []
+    for name in variants:
+        fields, share = VARIANTS[name]
+        phase_cfg = dataclasses.replace(cfg, **fields)
+        for r in range(repeats):
+            policy.load_state_dict(start)
+            torch.manual_seed(1000 + r)                  # the repeat's draws: the same for every variant
+            swap = mock.patch.object(rlil, "sample_sim_states", starts_from_p_s(share)) if share else contextlib.nullcontext()
+            with swap:
+                phase = rlil.optimize_policy(policy, model, {traj.design: traj}, {}, 0.0, phase_cfg,
+                                             np.random.default_rng(1000 + r))
+            rows.append({"design": design, "seed": seed, "after": after, "start_m": start_m, "variant": name,
+                         "repeat": r, "distance_m": distance(policy, traj.design, cfg),
+                         "reverts": phase["reverts"], "validation_reward": phase["validation_reward"]})
+    return rows
+
+
+def summary(rows: list[dict]) -> str:
+    """Markdown: per starting point, each variant's distances after one phase."""
+    variants = [v for v in VARIANTS if any(r["variant"] == v for r in rows)]
+    points = list(dict.fromkeys((r["design"], int(r["seed"]), int(r["after"]), float(r["start_m"])) for r in rows))
+    lines = ["| design, seed, after (start, m) | " + " | ".join(variants) + " |",
+             "|---|" + "---|" * len(variants)]
+    for design, seed, after, start_m in points:
+        cells = []
+        for v in variants:
+            d = [float(r["distance_m"]) for r in rows if (r["design"], int(r["seed"]), int(r["after"]), r["variant"])
+                 == (design, seed, after, v)]
+            cells.append(", ".join(f"{x:.2f}" for x in d) if d else "-")
+        lines.append(f"| {design}, {seed}, {after} ({start_m:.2f}) | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    parser = sim2d.CliParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--preset", default="default", help="Algorithm 1's budget (walk: panel (a)'s)")
+    parser.add_argument("--design", default="hexapod")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
+    parser.add_argument("--after", nargs="+", type=int, default=[4], metavar="N",
+                        help="starting points: after N finished iterations of plain RL (default 4)")
+    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), metavar="NAME",
+                        help=f"one or more of {', '.join(VARIANTS)} (default: all)")
+    parser.add_argument("--repeats", type=int, default=3, help="phases per variant and starting point (default 3)")
+    parser.add_argument("--out", type=Path, help="also write every repeat's row to this CSV")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out file")
+    args = parser.parse_args(argv)
+    try:
+        design = sim2d.design_name(sim2d.parse_design(args.design))
+        base = rlil.preset(args.preset)
+        check_output_file(args.out, ".csv", "--out", args.force)
+    except (ValueError, UsageError) as e:
+        parser.error(str(e))
+    unknown = [v for v in args.variants if v not in VARIANTS]
+    if unknown:
+        parser.error(f"unknown variant {unknown[0]!r}: use one or more of {', '.join(VARIANTS)}")
+    for name, values, lo, hi in (("--after", args.after, 0, 50), ("--seeds", args.seeds, 0, rlil.MAX_SEED),
+                                 ("--repeats", [args.repeats], 1, 100)):
+        if any(not lo <= v <= hi for v in values):
+            parser.error(f"{name} takes {lo} to {hi}")
+    rows = []
+    for seed in args.seeds:
+        for after in args.after:
+            rows += probe_rows(design, seed, after, args.variants, args.repeats, base)
+            print(f"{design} seed {seed} after {after}: done", flush=True)
+    print(summary(rows))
+    if args.out:
+        write_rows_csv(args.out, COLUMNS, rows)
+        print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
