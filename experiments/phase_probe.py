@@ -45,6 +45,8 @@ VARIANTS = {
     "K120": ({}, 0.0),                                   # the phase as Algorithm 1 runs it (K = 120)
     "K240": ({"policy_steps": 240}, 0.0),
     "K480": ({"policy_steps": 480}, 0.0),
+    "K480_B16": ({"policy_steps": 480, "batch": 16}, 0.0),   # 4x the steps at 1/4 of the batch
+    "K480_B32": ({"policy_steps": 480, "batch": 32}, 0.0),
     "T10": ({"horizon": 10}, 0.0),
     "T40": ({"horizon": 40}, 0.0),
     "lr3e-3": ({"policy_lr": 3e-3}, 0.0),
