@@ -598,9 +598,12 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
     "walk_tries3": ("the walk with a line search in the improvement check: the step, its half, its quarter (--improvement-tries 3, since removed; 1c80801 has it)",
                     ("panel_c_candidates/walk_tries3", "leg_leg_wheel-rl")),
     "walk_k480": ("the walk with K = 480 policy steps per iteration (--policy-steps 480)",
-                  ("panel_c_candidates/walk_k480", "leg_leg_wheel-rl"))}
+                  ("panel_c_candidates/walk_k480", "leg_leg_wheel-rl")),
+    "walk_k480b16": ("the walk with K = 480 policy steps at N_batch = 16 (--policy-steps 480 --batch 16)",
+                     ("panel_c_candidates/walk_k480b16", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd",
-                 "walk_critic": "walk_amd", "walk_tries3": "walk_amd", "walk_k480": "walk_amd"}      # a candidate: its ablation row, run on the same machine
+                 "walk_critic": "walk_amd", "walk_tries3": "walk_amd", "walk_k480": "walk_amd",
+                 "walk_k480b16": "walk_amd"}      # a candidate: its ablation row, run on the same machine
 
 
 def panel_c_line(results: Path, iters: int = 5):
@@ -711,7 +714,8 @@ def seed_rate_table(results: Path) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
-PAIRED_CANDIDATES = ("walk_offset10", "walk_noise06", "walk_critic", "walk_tries3", "walk_k480")   # panel (a), against walk_amd
+PAIRED_CANDIDATES = ("walk_offset10", "walk_noise06", "walk_critic", "walk_tries3", "walk_k480",
+                     "walk_k480b16")   # panel (a), against walk_amd
 
 
 def panel_a_pairing_table(folder: Path, baseline: str = "walk_amd", z: float = 1.96, resolve_m: float = 2.0) -> str:
@@ -947,7 +951,7 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             if table:
                 tables[results / "panel_a_pairing.md"] = table
             for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise"),   # against the walk, one CPU
-                                  ("walk_critic", "critic"), ("walk_tries3", "tries"), ("walk_k480", "k480")):
+                                  ("walk_critic", "critic"), ("walk_tries3", "tries"), ("walk_k480", "k480"), ("walk_k480b16", "k480b16")):
                 table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
                 if table:                                                                     # (AMD AVX512)
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
