@@ -554,6 +554,7 @@ def test_a_run_written_before_a_removal_loads_only_if_it_left_the_removed_switch
     old = {**d, "ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "critic": False,
            "critic_gamma": 0.99, "critic_lambda": 0.95, "critic_steps": 4, "random_wave_share": 1.0,
            "wheel_splines": False, "random_wave_offset": 0.0, "bc_lr": 1e-3,
+           "random_knots": 10, "recent_data": 0.0, "improvement_tries": 1,
            "gnn": {**d["gnn"], "contact_features": False}}
     assert run_folders.config_from_dict(old) == rlil.Config()
     for changed, name in (({"gnn": {**d["gnn"], "contact_features": True}}, "gnn.contact_features"),
@@ -561,7 +562,8 @@ def test_a_run_written_before_a_removal_loads_only_if_it_left_the_removed_switch
                           ({"random_waves": True, "random_wave_share": 0.5}, "random_wave_share"),
                           ({"random_waves": True, "wheel_splines": True}, "wheel_splines"),
                           ({"random_waves": True, "random_wave_offset": 1.0}, "random_wave_offset"),
-                          ({"bc_lr": 2e-3}, "bc_lr")):
+                          ({"bc_lr": 2e-3}, "bc_lr"), ({"random_knots": 5}, "random_knots"),
+                          ({"recent_data": 0.5}, "recent_data"), ({"improvement_tries": 3}, "improvement_tries")):
         with pytest.raises(run_folders.UsageError, match=name):
             run_folders.config_from_dict({**d, **changed})
 
