@@ -155,7 +155,9 @@ class Config:
 # (`python train.py --train car --preset tiny`): the car learns to drive in it.
 # "walk" is the budget at which plain RL learns to walk the hexapod (Figure 3's panel (a),
 # docs/results.md): 16x the data per iteration, line 2's actions as sine waves, a log-std
-# floor of -1.0 for the policy's noise, 15 iterations; 14-18 minutes a run on one core.
+# floor of -1.0 for the policy's noise, K = 480 policy steps on batches of 16 initial states
+# (the same 7,680 starts a phase as K = 120 at 64: part 21 of the diagnosis), 15 iterations;
+# 9-18 minutes a run on one core.
 PRESETS = {
     "default": {},
     "tiny": dict(iters=2, threads=1, random_episodes=8, episode_steps=40, policy_episodes=4,
@@ -164,7 +166,7 @@ PRESETS = {
                  validate_every=10, validation_multiple=2, il_batch=8, il_window=4, eval_episodes=4,
                  eval_steps=100, gnn=GNNConfig(hidden=32)),
     "walk": dict(iters=15, random_episodes=512, policy_episodes=256, random_waves=True,
-                 gnn=GNNConfig(log_std_min=-1.0)),
+                 policy_steps=480, batch=16, gnn=GNNConfig(log_std_min=-1.0)),
 }
 
 

@@ -9,9 +9,11 @@ result in the simulator by Sec. IV's metric (distance in `eval_steps` steps from
 starts, the mean action).  Each repeat starts from the same policy and model with draws of its own
 (buffer, noise), so a variant's repeats show its spread.
 
-    python experiments/phase_probe.py --preset walk --seeds 0 --after 4                # every variant, 3 repeats
-    python experiments/phase_probe.py --preset walk --seeds 1 25 --after 4 --variants K120 K240 K480
+    python experiments/phase_probe.py --preset walk --set policy_steps=120 batch=64 --seeds 0 --after 4   # every variant
+    python experiments/phase_probe.py --preset walk --set policy_steps=120 batch=64 --seeds 1 25 --after 4 --variants K120 K480
     python experiments/phase_probe.py --preset walk --seeds 0 --after 4 --out probe.csv
+
+(`--set policy_steps=120 batch=64` is the walk before part 21, the one every committed probe ran at.)
 
 Variants (VARIANTS): K, the phase's steps; T, the horizon; the learning rate; and where line 7
 draws the buffer's initial states: from T_train (Algorithm 1) or from the simulator's start
@@ -35,6 +37,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import sim2d                                                                                 # noqa: E402
 from experiments.gradient_check import starting_point                                        # noqa: E402
+from experiments.model_replay import with_settings                                           # noqa: E402
 from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
@@ -42,7 +45,7 @@ COLUMNS = ["design", "seed", "after", "start_m", "variant", "repeat", "distance_
 
 # name: (Config fields changed, share of line 7's initial states drawn from p(s) instead of T_train)
 VARIANTS = {
-    "K120": ({}, 0.0),                                   # the phase as Algorithm 1 runs it (K = 120)
+    "K120": ({"policy_steps": 120, "batch": 64}, 0.0),   # the phase at the defaults' K and batch
     "K240": ({"policy_steps": 240}, 0.0),
     "K480": ({"policy_steps": 480}, 0.0),
     "K480_B16": ({"policy_steps": 480, "batch": 16}, 0.0),   # 4x the steps at 1/4 of the batch
@@ -119,6 +122,8 @@ def main(argv=None) -> int:
     parser.add_argument("--preset", default="default", help="Algorithm 1's budget (walk: panel (a)'s)")
     parser.add_argument("--design", default="hexapod")
     parser.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
+    parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE",
+                        help="Config fields of the run that makes the starting point, e.g. policy_steps=120")
     parser.add_argument("--after", nargs="+", type=int, default=[4], metavar="N",
                         help="starting points: after N finished iterations of plain RL (default 4)")
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), metavar="NAME",
@@ -129,7 +134,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         design = sim2d.design_name(sim2d.parse_design(args.design))
-        base = rlil.preset(args.preset)
+        base = with_settings(rlil.preset(args.preset), args.set)
+        rlil.validate_config(base)
         check_output_file(args.out, ".csv", "--out", args.force)
     except (ValueError, UsageError) as e:
         parser.error(str(e))

@@ -581,7 +581,7 @@ def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, m
 PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, part 9): variant: (what differs, runs)
     "defaults": ("none: Figure 3's committed runs", ("figure3_runs", "leg_leg_wheel-rl")),
     "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "leg_leg_wheel-rl")),
-    "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5)",
+    "walk": ("data16, --random-waves on, --gnn-log-std-min -1.0 (--preset walk --iters 5 --policy-steps 120 --batch 64: the walk before part 21)",
              ("walk_panel_c_runs", "leg_leg_wheel-rl")),
     "walk_mix05": ("the walk with half of line 2's episodes splines (--random-wave-share 0.5, since removed)",
                    ("panel_c_candidates/walk_mix05", "leg_leg_wheel-rl")),
@@ -599,7 +599,7 @@ PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, p
                     ("panel_c_candidates/walk_tries3", "leg_leg_wheel-rl")),
     "walk_k480": ("the walk with K = 480 policy steps per iteration (--policy-steps 480)",
                   ("panel_c_candidates/walk_k480", "leg_leg_wheel-rl")),
-    "walk_k480b16": ("the walk with K = 480 policy steps at N_batch = 16 (--policy-steps 480 --batch 16)",
+    "walk_k480b16": ("the walk with K = 480 policy steps at N_batch = 16 (--policy-steps 480 --batch 16): the walk since part 21",
                      ("panel_c_candidates/walk_k480b16", "leg_leg_wheel-rl"))}
 PANEL_C_PAIRS = {"walk_wheel_splines": "walk_amd", "walk_offset10": "walk_amd", "walk_noise06": "walk_amd",
                  "walk_critic": "walk_amd", "walk_tries3": "walk_amd", "walk_k480": "walk_amd",
@@ -637,7 +637,9 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
         x, y = [final[v][s] for s in seeds], [final[base][s] for s in seeds]
         return f"{np.mean(x) - np.mean(y):+.2f} {interval(bootstrap_diff_ci(x, y))}"
 
-    lines = [f"Converged: the first iteration at {line:.2f} m, 90 % of the committed panel (c)'s best final mean.", "",
+    lines = [f"Converged: the first iteration at {line:.2f} m, 90 % of the committed panel (c)'s best final mean. "
+             "\"The walk\" in a row's text is the walk before part 21 (K = 120 policy steps at N_batch = 64); "
+             "since then the preset is walk_k480b16's.", "",
              f"| variant | differs from the defaults | seeds | converged at, per seed | converged by {iters} "
              f"| final (m) [95 % CI] | area under the curve (m) [95 % CI] | final − defaults (m) [95 % CI] "
              "| final − data16 (m) [95 % CI] | final − its ablation row (m) [95 % CI] | s per run |",
@@ -657,7 +659,7 @@ def panel_c_budget_table(root: Path, iters: int = 5) -> str:
 
 
 SEED_RATE_RUNS = {     # one setting's runs on several machines and seeds: (run name, ((folder, machine), ...))
-    "the walk, plain RL, leg_leg_wheel": ("leg_leg_wheel-rl", (
+    "the walk at K = 120, plain RL, leg_leg_wheel": ("leg_leg_wheel-rl", (
         ("walk_panel_c_runs", "Intel Xeon, AVX512 (the committed Figure 3's machine)"),
         ("panel_c_candidates/walk_amd", "AMD EPYC, AVX512"),
         ("seed_rate_runs/walk_panel_c", "Intel Xeon, AVX512 with AMX"))),
@@ -665,13 +667,13 @@ SEED_RATE_RUNS = {     # one setting's runs on several machines and seeds: (run 
         ("figure3_runs", "Intel Xeon, AVX512 (the committed Figure 3's machine)"),
         ("budget_screen_runs/defaults", "seeds 0-2, 5, 6 on an AVX2 machine, 3, 4, 7-9 on an AMD EPYC"),
         ("seed_rate_runs/main_command", "Intel Xeon, AVX512 with AMX"))),
-    "the walk, plain RL, hexapod": ("hexapod-rl", (      # the committed figure's AVX2 runs give walk_amd's digits
+    "the walk at K = 120, plain RL, hexapod": ("hexapod-rl", (      # the committed figure's AVX2 runs give walk_amd's digits
         ("panel_a_candidates/walk_amd", "AMD EPYC, AVX512 (the committed figure's AVX2 machine: the same digits)"),
         ("seed_rate_runs/walk_panel_a", "AMD EPYC, AVX512")))}
 # What a seed may do, the issue's mark on 10 seeds, and the chance that 10 seeds at rate p pass it:
 # (runs of SEED_RATE_RUNS, what, does(rows, line), mark, chance(p), iterations); `line` is panel (c)'s.
 SEED_RATE_EVENTS = (
-    ("the walk, plain RL, leg_leg_wheel", "converges by iteration 5 (panel (c)'s line, {line:.2f} m)",
+    ("the walk at K = 120, plain RL, leg_leg_wheel", "converges by iteration 5 (panel (c)'s line, {line:.2f} m)",
      lambda rows, line: any(r["distance_m"] >= line for r in rows[1:6]),
      "#34: 8 or more of 10", lambda p: stats.chance_of_at_least(8, 10, p), 5),
     ("the main command (RL+IL, leg_none_wheel, the defaults)", "is under 15 m at an iteration from 2 on",
@@ -680,7 +682,7 @@ SEED_RATE_EVENTS = (
     ("the main command (RL+IL, leg_none_wheel, the defaults)", f"falls by more than {FALL_M:.0f} m between two "
      "iterations, from iteration 0 on", lambda rows, line: largest_fall(run_curve(rows), 5, first=0) > FALL_M,
      "#34: none of 10", lambda p: (1 - p) ** 10, 5),
-    ("the walk, plain RL, hexapod", "is at 10 m or more at iteration 15 (panel (a))",
+    ("the walk at K = 120, plain RL, hexapod", "is at 10 m or more at iteration 15 (panel (a))",
      lambda rows, line: rows[15]["distance_m"] >= 10.0,
      "#34: 7 or more of 10", lambda p: stats.chance_of_at_least(7, 10, p), 15))
 
@@ -877,11 +879,11 @@ def phase_table(path: Path) -> str:
 
 
 FLATTERY_VARIANTS = {   # experiments/flattery_curve.py's CSVs, results/flattery_curve_runs/<variant>_seed<S>.csv
-    "walk_hexapod": "the walk preset (line 2's sine waves)",
+    "walk_hexapod": "the walk preset before part 21, K = 120 (line 2's sine waves)",
     "offset10_hexapod": "the walk with --random-wave-offset 1.0 (since removed; 99a726e has it)",
     "defaults_hexapod": "the defaults (line 2's splines, 32 random episodes)",
     "defaults_leg_leg_wheel": "the defaults on leg_leg_wheel",
-    "walk_leg_leg_wheel": "the walk preset on leg_leg_wheel"}
+    "walk_leg_leg_wheel": "the walk preset before part 21 on leg_leg_wheel"}
 
 
 def flattery_curve_table(folder: Path) -> str:

@@ -39,6 +39,8 @@ def test_a_step_along_the_gradient_raises_the_models_return():
     ("phase_probe", ["--variants", "K9"], "unknown variant 'K9'"),
     ("phase_probe", ["--repeats", "0"], "--repeats takes 1 to 100"),
     ("phase_probe", ["--design", "tank"], "tank"),
+    ("phase_probe", ["--set", "batch=0"], "batch must be"),
+    ("phase_probe", ["--set", "nope=1"], "--set nope=1"),
     ("clone_flips", ["--seeds", "-1"], "--seeds takes 0 to"),
     ("clone_flips", ["--train", "tank"], "tank"),
     ("clone_flips", ["--out", "x.txt"], "name a .csv file")])

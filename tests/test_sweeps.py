@@ -433,7 +433,7 @@ def test_the_seed_rate_table_counts_converged_fallen_and_falling_seeds_with_thei
     run("figure3_runs", "leg_none_wheel-hexapod_car", 1, [5, 20, 14.99, 20, 20, 20])
     run("seed_rate_runs/main_command", "leg_none_wheel-hexapod_car", 10, [5, 20, 20, 20])   # unfinished: left out
     table = tables.seed_rate_table(tmp_path).splitlines()
-    assert table[0] == ("**the walk, plain RL, leg_leg_wheel: a seed converges by iteration 5 (panel (c)'s line, "
+    assert table[0] == ("**the walk at K = 120, plain RL, leg_leg_wheel: a seed converges by iteration 5 (panel (c)'s line, "
                         "18.00 m)** (the mark: #34: 8 or more of 10)")
     assert table[4].endswith("(`results/walk_panel_c_runs`) | 0-1 | 1 | 1 of 2: 0.50 [0.09, 0.91] | 0.05 |")
     assert table[5].endswith("(`results/seed_rate_runs/walk_panel_c`) | 10 | none | 0 of 1: 0.00 [0.00, 0.79] | 0.00 |")
@@ -447,7 +447,7 @@ def test_the_seed_rate_table_counts_converged_fallen_and_falling_seeds_with_thei
     run("seed_rate_runs/walk_panel_a", "hexapod-rl", 11, [0] * 9 + [12] + [9.99] * 6)   # not at 15
     run("seed_rate_runs/walk_panel_a", "hexapod-rl", 12, [0] * 15)                 # unfinished: left out
     table = tables.seed_rate_table(tmp_path).splitlines()
-    assert table[22] == ("**the walk, plain RL, hexapod: a seed is at 10 m or more at iteration 15 (panel (a))** "
+    assert table[22] == ("**the walk at K = 120, plain RL, hexapod: a seed is at 10 m or more at iteration 15 (panel (a))** "
                          "(the mark: #34: 7 or more of 10)")
     assert table[26].endswith("(`results/seed_rate_runs/walk_panel_a`) | 10-11 | 10 | 1 of 2: 0.50 [0.09, 0.91] | 0.17 |")
     assert len(table) == 28
@@ -478,12 +478,17 @@ def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
     run of that budget records, with the flags its folder names, so that the docs' commands
     reproduce them; fails when the preset and the runs part (a changed field, a switch left out)."""
     root = sweeps.ROOT / "results"
-    folders = {"plain_rl_budget_runs/data16_waves_stdmin10": {}, "figure3_walk_runs": {},
-               "walk_panel_c_runs": {"iters": 5}, "panel_a_candidates/walk_avx512": {},
-               "seed_rate_runs/walk_panel_c": {"iters": 5}}
+    k120 = {"policy_steps": 120, "batch": 64}       # the walk before part 21 of the diagnosis
+    folders = {"plain_rl_budget_runs/data16_waves_stdmin10": k120, "figure3_walk_runs": k120,
+               "walk_panel_c_runs": {**k120, "iters": 5}, "panel_a_candidates/walk_avx512": k120,
+               "panel_a_candidates/walk_amd": k120, "panel_c_candidates/walk_amd": {**k120, "iters": 5},
+               "seed_rate_runs/walk_panel_c": {**k120, "iters": 5},
+               "panel_a_candidates/walk_k480b16": {}, "panel_c_candidates/walk_k480b16": {"iters": 5},
+               "figure3_walk_k480b16_runs": {}}
     for folder, flags in folders.items():
         paths = sorted(root.glob(f"{folder}/*-seed*/metrics.json"))
-        assert len(paths) >= (10 if folder in ("figure3_walk_runs", "walk_panel_c_runs") else 0), folder
+        assert len(paths) >= (10 if folder in ("figure3_walk_runs", "walk_panel_c_runs", "panel_a_candidates/walk_k480b16",
+                                               "panel_c_candidates/walk_k480b16") else 0), folder
         for path in paths:
             saved, why = sweeps.read_metrics(path.parent)
             assert why is None, f"{path}: {why}"
