@@ -105,9 +105,10 @@ def summarize_claims(rows: list[dict], iters: int, seeds: int) -> str:
 
 
 # Figure 3's panels at other budgets, each a sweep of its own in results/<folder>/: panel (a) at
-# --preset walk (15 iterations), panel (c) at the walk with half of line 2's episodes splines (5 iterations;
+# --preset walk (15 iterations) before part 21 of the diagnosis (--policy-steps 120 --batch 64) and
+# since (figure3_walk_k480b16), panel (c) at the walk with half of line 2's episodes splines (5 iterations;
 # --random-wave-share 0.5, a switch measured and removed: commit 43d953d runs it)
-SWEEPS_OF_THEIR_OWN = ("figure3_walk", "figure3_mix_c")
+SWEEPS_OF_THEIR_OWN = ("figure3_walk", "figure3_walk_k480b16", "figure3_mix_c")
 
 
 def paired_claims(rows: list[dict]) -> str:
