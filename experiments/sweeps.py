@@ -685,7 +685,7 @@ def write_figure3(out: Path, rows: list[dict], iters: int, problems: list[str] =
         ax.legend(fontsize=8, loc="lower right")
     axes[0].set_ylabel("distance in 200 steps (m)")
     fig.suptitle(f"mean over seeds, its 95 % bootstrap interval (band) and min-max (dotted)"
-                 f"{chr(10) if narrow else '; '}{provenance(rows)}", fontsize=8)
+                 f"{chr(10) if narrow else '; '}{provenance(rows)}", fontsize=8, wrap=True)
     save_sweep_plot(fig, out / "figure3.png", problems)
 
 
