@@ -15,9 +15,13 @@ starts, the mean action).  Each repeat starts from the same policy and model wit
 
 (`--set policy_steps=120 batch=64` is the walk before part 21, the one every committed probe ran at.)
 
-Variants (VARIANTS): K, the phase's steps; T, the horizon; the learning rate; and where line 7
+Variants (VARIANTS): K, the phase's steps; T, the horizon; the learning rate; where line 7
 draws the buffer's initial states: from T_train (Algorithm 1) or from the simulator's start
-distribution p(s) (`sim2d.sample_initial_states`), all or half of them.
+distribution p(s) (`sim2d.sample_initial_states`), all or half of them; and (part 23, a policy
+that already walks) the noise of L_RL's model roll-outs: none (the mean action, as the
+evaluation runs it) or a lower floor under the policy's log-std for the phase.
+
+    python experiments/phase_probe.py --preset walk --seeds 1 4 5 7 --after 7 --variants own det floor25 T40 lr3e-4 K120_B16
 """
 from __future__ import annotations
 
@@ -41,7 +45,8 @@ from experiments.model_replay import with_settings                              
 from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
-COLUMNS = ["design", "seed", "after", "start_m", "variant", "repeat", "distance_m", "reverts", "validation_reward"]
+COLUMNS = ["design", "seed", "after", "start_m", "variant", "repeat", "distance_m", "reverts", "validation_reward",
+           "start_log_std"]     # the starting policy's noise (`mean_log_std`; empty in the CSVs before part 23)
 
 # name: (Config fields changed, share of line 7's initial states drawn from p(s) instead of T_train)
 VARIANTS = {
@@ -55,7 +60,50 @@ VARIANTS = {
     "lr3e-3": ({"policy_lr": 3e-3}, 0.0),
     "B_ps": ({}, 1.0),
     "B_ps_half": ({}, 0.5),
+    # part 23: a policy that walks
+    "own": ({}, 0.0),                   # the run's own phase (at the walk: K = 480 on batches of 16)
+    "K120_B16": ({"policy_steps": 120, "batch": 16}, 0.0),   # a quarter of the walk's phase
+    "lr3e-4": ({"policy_lr": 3e-4}, 0.0),
+    "det": ({}, 0.0),                   # L_RL's roll-outs take the mean action, no observation noise
+    "floor25": ({}, 0.0),               # the policy's log-std floor at -2.5 (the defaults') for the phase
 }
+NOISE = {"det": "mean", "floor25": -2.5}    # the variants that change L_RL's noise (`phase_noise`)
+
+
+@contextlib.contextmanager
+def phase_noise(policy, name: str):
+    """The roll-out noise of variant `name` for one phase: "det" makes `rlil.rl_loss`'s roll-outs
+    deterministic (the mean action from noiseless observations); "floor25" lowers the policy's
+    log-std floor (its log-std maps onto [-2.5, max] instead of [min, max]); otherwise nothing."""
+    change = NOISE.get(name)
+    if change == "mean":
+        rollout = rlil.rollout
+        with mock.patch.object(rlil, "rollout", lambda *a, **k: rollout(*a, **{**k, "deterministic": True})):
+            yield
+    elif change is not None:
+        old = policy.cfg.log_std_min
+        policy.cfg.log_std_min = change
+        try:
+            yield
+        finally:
+            policy.cfg.log_std_min = old
+    else:
+        yield
+
+
+@torch.no_grad()
+def mean_log_std(policy, model, traj, cfg: rlil.Config, n: int = 256) -> float:
+    """The policy's mean log-std along deterministic T-step model roll-outs from n states of T_train
+    (a fresh hidden state): how much noise L_RL's roll-outs carry."""
+    graph = sim2d.design_graph(traj.design)
+    pi, f = policy.on_design(graph), model.on_design(graph)
+    s = rlil.sample_sim_states(traj, n, np.random.default_rng(0))
+    h, values = policy.initial_hidden(n, graph), []
+    for _ in range(cfg.horizon):
+        mean, log_std, h = pi.step(sim2d.observe(s, graph), h)
+        values.append(log_std.mean())
+        s = f(s, mean)
+    return float(torch.stack(values).mean())
 
 
 def starts_from_p_s(share: float):
@@ -84,6 +132,7 @@ def probe_rows(design: str, seed: int, after: int, variants, repeats: int,
     policy, model, traj, _ = starting_point(cfg, after)
     start = copy.deepcopy(policy.state_dict())
     start_m = distance(policy, traj.design, cfg)
+    start_log_std = mean_log_std(policy, model, traj, cfg)
     rows = []
     for name in variants:
         fields, share = VARIANTS[name]
@@ -92,12 +141,13 @@ def probe_rows(design: str, seed: int, after: int, variants, repeats: int,
             policy.load_state_dict(start)
             torch.manual_seed(1000 + r)                  # the repeat's draws: the same for every variant
             swap = mock.patch.object(rlil, "sample_sim_states", starts_from_p_s(share)) if share else contextlib.nullcontext()
-            with swap:
+            with swap, phase_noise(policy, name):
                 phase = rlil.optimize_policy(policy, model, {traj.design: traj}, {}, 0.0, phase_cfg,
                                              np.random.default_rng(1000 + r))
             rows.append({"design": design, "seed": seed, "after": after, "start_m": start_m, "variant": name,
                          "repeat": r, "distance_m": distance(policy, traj.design, cfg),
-                         "reverts": phase["reverts"], "validation_reward": phase["validation_reward"]})
+                         "reverts": phase["reverts"], "validation_reward": phase["validation_reward"],
+                         "start_log_std": start_log_std})
     return rows
 
 

@@ -1,4 +1,6 @@
 """experiments/gradient_check.py: the probe of whether the model's gradient points uphill in the simulator."""
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -146,3 +148,18 @@ def test_the_phase_probe_draws_a_share_of_the_starts_from_p_s():
     speed = s[:, 3:5].abs().max(1).values
     assert s.shape == (8, traj.states.shape[-1]) and s.dtype == traj.states.dtype
     assert bool((speed[:4] <= sim2d.INIT_BODY_VEL).all()) and not bool((speed[4:] <= sim2d.INIT_BODY_VEL).all())
+
+
+def test_the_phase_probe_noise_variants_change_the_phase_and_only_it():
+    """Part 23's variants: "det" (L_RL's roll-outs on the mean action) and "floor25" (a lower
+    log-std floor) each end the phase elsewhere than the same draws at the run's own noise, and
+    leave `rlil.rollout` and the policy's floor as they were; the start's log-std is in the floor's range."""
+    from experiments import phase_probe as pp
+    rollout = rlil.rollout
+    cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1, seed=2)
+    cfg.gnn.log_std_min = -1.0
+    rows = pp.probe_rows("car", 2, 0, ["own", "det", "floor25"], repeats=1, base=cfg)
+    d = {r["variant"]: r["distance_m"] for r in rows}
+    assert d["det"] != d["own"] and d["floor25"] != d["own"] and d["det"] != d["floor25"]
+    assert rlil.rollout is rollout and cfg.gnn.log_std_min == -1.0
+    assert -1.0 <= rows[0]["start_log_std"] <= 0.0
