@@ -167,6 +167,34 @@ def summary(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def gains(rows: list[dict], reference: str = "own", walking_m: float = 10.0) -> str:
+    """Markdown, part 23's rule: per variant, over the starting points at `walking_m` or more, the
+    mean of (its mean distance over the repeats - `reference`'s) and at how many points it is above;
+    and the starting points' log-std (`mean_log_std`)."""
+    def mean_at(point, v):
+        d = [float(r["distance_m"]) for r in rows if (r["design"], int(r["seed"]), int(r["after"]), r["variant"]) == (*point, v)]
+        return float(np.mean(d)) if d else None
+    starts = {(r["design"], int(r["seed"]), int(r["after"])): (float(r["start_m"]), r.get("start_log_std") or "")
+              for r in rows}
+    walking = [p for p, (m, _) in starts.items() if m >= walking_m and mean_at(p, reference) is not None]
+    ref = {p: mean_at(p, reference) for p in walking}
+    lines = [f"Starting points at {walking_m:g} m or more: {len(walking)} of {len(starts)} ("
+             + "; ".join(f"seed {p[1]} after {p[2]}: {m:.2f} m, log-std {float(ls):.2f}" if ls != "" else
+                         f"seed {p[1]} after {p[2]}: {m:.2f} m" for p, (m, ls) in starts.items()) + ").",
+             "",
+             f"| variant | mean distance after one phase (m) | gain over {reference} (m) | points above {reference} |",
+             "|---|---|---|---|"]
+    for v in [v for v in VARIANTS if any(r["variant"] == v for r in rows)]:
+        at = [(p, mean_at(p, v)) for p in walking if mean_at(p, v) is not None]
+        if not at:
+            continue
+        gain = np.mean([m - ref[p] for p, m in at])
+        above = sum(m > ref[p] for p, m in at)
+        lines.append(f"| {v} | {np.mean([m for _, m in at]):.2f} | {gain:+.2f} | "
+                     + ("-" if v == reference else f"{above} of {len(at)}") + " |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     parser = sim2d.CliParser(description=__doc__.split("\n")[0])
     parser.add_argument("--preset", default="default", help="Algorithm 1's budget (walk: panel (a)'s)")
@@ -202,6 +230,8 @@ def main(argv=None) -> int:
             rows += probe_rows(design, seed, after, args.variants, args.repeats, base)
             print(f"{design} seed {seed} after {after}: done", flush=True)
     print(summary(rows))
+    if "own" in args.variants:
+        print(gains(rows))
     if args.out:
         write_rows_csv(args.out, COLUMNS, rows)
         print(f"wrote {args.out}")

@@ -163,3 +163,18 @@ def test_the_phase_probe_noise_variants_change_the_phase_and_only_it():
     assert d["det"] != d["own"] and d["floor25"] != d["own"] and d["det"] != d["floor25"]
     assert rlil.rollout is rollout and cfg.gnn.log_std_min == -1.0
     assert -1.0 <= rows[0]["start_log_std"] <= 0.0
+
+
+def test_the_walking_probe_gains_count_only_walking_points():
+    """`gains` (part 23's rule): a variant's gain is its mean over the repeats minus `own`'s,
+    averaged over the starting points at 10 m or more only, with the points where it is above."""
+    from experiments import phase_probe as pp
+    rows = [{"design": "hexapod", "seed": s, "after": 7, "start_m": start, "variant": v, "repeat": r,
+             "distance_m": start + shift + r, "reverts": 0, "validation_reward": 1.0, "start_log_std": -0.9}
+            for s, start in ((1, 15.0), (4, 5.0), (5, 18.0))
+            for v, shift in (("own", 0.0), ("det", 1.0 if s != 4 else -9.0), ("floor25", -0.5 if s == 1 else 0.5))
+            for r in range(3)]
+    lines = pp.gains(rows).splitlines()
+    assert lines[0].startswith("Starting points at 10 m or more: 2 of 3")
+    assert "| det | 18.50 | +1.00 | 2 of 2 |" in lines
+    assert "| floor25 | 17.50 | +0.00 | 1 of 2 |" in lines
