@@ -668,6 +668,9 @@ SEED_RATE_RUNS = {     # one setting's runs on several machines and seeds: (run 
         ("figure3_runs", "Intel Xeon, AVX512 (the committed Figure 3's machine)"),
         ("budget_screen_runs/defaults", "seeds 0-2, 5, 6 on an AVX2 machine, 3, 4, 7-9 on an AMD EPYC"),
         ("seed_rate_runs/main_command", "Intel Xeon, AVX512 with AMX"))),
+    "the walk (K = 480 on batches of 16), plain RL, leg_leg_wheel": ("leg_leg_wheel-rl", (   # part 23
+        ("panel_c_candidates/walk_k480b16", "AMD EPYC, AVX512"),
+        ("seed_rate_runs/walk_k480b16_panel_c", "AMD EPYC, AVX2"))),
     "the walk at K = 120, plain RL, hexapod": ("hexapod-rl", (      # the committed figure's AVX2 runs give walk_amd's digits
         ("panel_a_candidates/walk_amd", "AMD EPYC, AVX512 (the committed figure's AVX2 machine: the same digits)"),
         ("seed_rate_runs/walk_panel_a", "AMD EPYC, AVX512")))}
@@ -675,6 +678,9 @@ SEED_RATE_RUNS = {     # one setting's runs on several machines and seeds: (run 
 # (runs of SEED_RATE_RUNS, what, does(rows, line), mark, chance(p), iterations); `line` is panel (c)'s.
 SEED_RATE_EVENTS = (
     ("the walk at K = 120, plain RL, leg_leg_wheel", "converges by iteration 5 (panel (c)'s line, {line:.2f} m)",
+     lambda rows, line: any(r["distance_m"] >= line for r in rows[1:6]),
+     "#34: 8 or more of 10", lambda p: stats.chance_of_at_least(8, 10, p), 5),
+    ("the walk (K = 480 on batches of 16), plain RL, leg_leg_wheel", "converges by iteration 5 (panel (c)'s line, {line:.2f} m)",
      lambda rows, line: any(r["distance_m"] >= line for r in rows[1:6]),
      "#34: 8 or more of 10", lambda p: stats.chance_of_at_least(8, 10, p), 5),
     ("the main command (RL+IL, leg_none_wheel, the defaults)", "is under 15 m at an iteration from 2 on",
