@@ -110,7 +110,7 @@ def test_the_phase_probe_starts_where_the_run_is_and_runs_a_phase():
     from experiments import phase_probe as pp
     sampler = rlil.sample_sim_states
     cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1, seed=2)
-    rows = pp.probe_rows("car", 2, 0, ["K120", "B_ps"], repeats=2, base=cfg)
+    rows = pp.probe_rows("car", 2, 0, ["lr3e-3", "B_ps"], repeats=2, base=cfg)
     assert len(rows) == 4 and set(rows[0]) == set(pp.COLUMNS)
     assert rlil.sample_sim_states is sampler
     run = rlil.algorithm1(cfg, {}, log=lambda m: None).metrics[0]
