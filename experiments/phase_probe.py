@@ -19,7 +19,8 @@ Variants (VARIANTS): K, the phase's steps; T, the horizon; the learning rate; wh
 draws the buffer's initial states: from T_train (Algorithm 1) or from the simulator's start
 distribution p(s) (`sim2d.sample_initial_states`), all or half of them; and (part 23, a policy
 that already walks) the noise of L_RL's model roll-outs: none (the mean action, as the
-evaluation runs it) or a lower floor under the policy's log-std for the phase.
+evaluation runs it) or a lower floor under the policy's log-std for the phase; (part 25) a higher
+floor.
 
     python experiments/phase_probe.py --preset walk --seeds 1 4 5 7 --after 7 --variants own det floor25 T40 lr3e-4 K120_B16
 """
@@ -66,15 +67,18 @@ VARIANTS = {
     "lr3e-4": ({"policy_lr": 3e-4}, 0.0),
     "det": ({}, 0.0),                   # L_RL's roll-outs take the mean action, no observation noise
     "floor25": ({}, 0.0),               # the policy's log-std floor at -2.5 (the defaults') for the phase
+    # part 25: more noise than the walk's floor
+    "floor05": ({}, 0.0),               # the policy's log-std floor at -0.5 for the phase (std >= 0.61)
 }
-NOISE = {"det": "mean", "floor25": -2.5}    # the variants that change L_RL's noise (`phase_noise`)
+NOISE = {"det": "mean", "floor25": -2.5, "floor05": -0.5}   # the variants that change L_RL's noise (`phase_noise`)
 
 
 @contextlib.contextmanager
 def phase_noise(policy, name: str):
     """The roll-out noise of variant `name` for one phase: "det" makes `rlil.rl_loss`'s roll-outs
     deterministic (the mean action from noiseless observations); "floor25" lowers the policy's
-    log-std floor (its log-std maps onto [-2.5, max] instead of [min, max]); otherwise nothing."""
+    log-std floor (its log-std maps onto [-2.5, max] instead of [min, max]), "floor05" raises it
+    (onto [-0.5, max]); otherwise nothing."""
     change = NOISE.get(name)
     if change == "mean":
         rollout = rlil.rollout

@@ -1001,11 +1001,12 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if probes:
         with made_from(results / "phase_probe"):
             tables[results / "phase_probe.md"] = phase_probe.summary([r for path in probes for r in read_rows_csv(path)])
-    probes = sorted((results / "phase_probe_walking").glob("*.csv"))    # part 23: a policy that walks
-    if probes:
-        with made_from(results / "phase_probe_walking"):
-            rows = [r for path in probes for r in read_rows_csv(path)]
-            tables[results / "phase_probe_walking.md"] = phase_probe.summary(rows) + "\n" + phase_probe.gains(rows)
+    for name in ("phase_probe_walking", "phase_probe_walking_floor05"):   # parts 23 and 25: a policy that walks
+        probes = sorted((results / name).glob("*.csv"))
+        if probes:
+            with made_from(results / name):
+                rows = [r for path in probes for r in read_rows_csv(path)]
+                tables[results / f"{name}.md"] = phase_probe.summary(rows) + "\n" + phase_probe.gains(rows)
     for name in ("side_by_side", "side_by_side_fine"):   # experiments/side_by_side.py (fine: --ppo-eval-every)
         if not (results / f"{name}.csv").exists():
             continue

@@ -151,16 +151,16 @@ def test_the_phase_probe_draws_a_share_of_the_starts_from_p_s():
 
 
 def test_the_phase_probe_noise_variants_change_the_phase_and_only_it():
-    """Part 23's variants: "det" (L_RL's roll-outs on the mean action) and "floor25" (a lower
-    log-std floor) each end the phase elsewhere than the same draws at the run's own noise, and
+    """Parts 23 and 25's variants: "det" (L_RL's roll-outs on the mean action), "floor25" and
+    "floor05" (a lower and a higher log-std floor) each end the phase elsewhere than the same draws at the run's own noise, and
     leave `rlil.rollout` and the policy's floor as they were; the start's log-std is in the floor's range."""
     from experiments import phase_probe as pp
     rollout = rlil.rollout
     cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1, seed=2)
     cfg.gnn.log_std_min = -1.0
-    rows = pp.probe_rows("car", 2, 0, ["own", "det", "floor25"], repeats=1, base=cfg)
+    rows = pp.probe_rows("car", 2, 0, ["own", "det", "floor25", "floor05"], repeats=1, base=cfg)
     d = {r["variant"]: r["distance_m"] for r in rows}
-    assert d["det"] != d["own"] and d["floor25"] != d["own"] and d["det"] != d["floor25"]
+    assert len(set(d.values())) == 4, d
     assert rlil.rollout is rollout and cfg.gnn.log_std_min == -1.0
     assert -1.0 <= rows[0]["start_log_std"] <= 0.0
 
