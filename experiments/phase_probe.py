@@ -47,7 +47,8 @@ from experiments.run_folders import UsageError, check_output_file               
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
 COLUMNS = ["design", "seed", "after", "start_m", "variant", "repeat", "distance_m", "reverts", "validation_reward",
-           "start_log_std"]     # the starting policy's noise (`mean_log_std`; empty in the CSVs before part 23)
+           "start_log_std",     # the starting policy's noise (`mean_log_std`; empty in the CSVs before part 23)
+           "start_from"]        # whose policy: RL or RL+IL (`--demos`; empty in the CSVs before part 26)
 
 # name: (Config fields changed, share of line 7's initial states drawn from p(s) instead of T_train)
 VARIANTS = {
@@ -130,10 +131,12 @@ def distance(policy, design: str, cfg: rlil.Config) -> float:
 
 
 def probe_rows(design: str, seed: int, after: int, variants, repeats: int,
-               base: rlil.Config | None = None) -> list[dict]:
-    """Every repeat's row (COLUMNS) for one design, seed and starting point."""
-    cfg = dataclasses.replace(base or rlil.Config(), train=(sim2d.parse_design(design),), demos=(), seed=seed)
-    policy, model, traj, _ = starting_point(cfg, after)
+               base: rlil.Config | None = None, demos=()) -> list[dict]:
+    """Every repeat's row (COLUMNS) for one design, seed and starting point. With `demos`, the
+    starting point is RL+IL's (the run with those demonstrations); the phases are plain RL's."""
+    cfg = dataclasses.replace(base or rlil.Config(), train=(sim2d.parse_design(design),),
+                              demos=tuple(map(sim2d.parse_design, demos)), seed=seed)
+    policy, model, traj, _ = starting_point(cfg, after, rlil.load_demos(cfg) if demos else None)
     start = copy.deepcopy(policy.state_dict())
     start_m = distance(policy, traj.design, cfg)
     start_log_std = mean_log_std(policy, model, traj, cfg)
@@ -151,7 +154,7 @@ def probe_rows(design: str, seed: int, after: int, variants, repeats: int,
             rows.append({"design": design, "seed": seed, "after": after, "start_m": start_m, "variant": name,
                          "repeat": r, "distance_m": distance(policy, traj.design, cfg),
                          "reverts": phase["reverts"], "validation_reward": phase["validation_reward"],
-                         "start_log_std": start_log_std})
+                         "start_log_std": start_log_std, "start_from": "RL+IL" if demos else "RL"})
     return rows
 
 
@@ -203,6 +206,8 @@ def main(argv=None) -> int:
     parser = sim2d.CliParser(description=__doc__.split("\n")[0])
     parser.add_argument("--preset", default="default", help="Algorithm 1's budget (walk: panel (a)'s)")
     parser.add_argument("--design", default="hexapod")
+    parser.add_argument("--demos", nargs="+", default=[], metavar="DESIGN",
+                        help="start from RL+IL's policy with these demonstrations (the phases stay plain RL's)")
     parser.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
     parser.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE",
                         help="Config fields of the run that makes the starting point, e.g. policy_steps=120")
@@ -216,6 +221,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         design = sim2d.design_name(sim2d.parse_design(args.design))
+        for d in args.demos:
+            sim2d.parse_design(d)
         base = with_settings(rlil.preset(args.preset), args.set)
         rlil.validate_config(base)
         check_output_file(args.out, ".csv", "--out", args.force)
@@ -231,7 +238,7 @@ def main(argv=None) -> int:
     rows = []
     for seed in args.seeds:
         for after in args.after:
-            rows += probe_rows(design, seed, after, args.variants, args.repeats, base)
+            rows += probe_rows(design, seed, after, args.variants, args.repeats, base, args.demos)
             print(f"{design} seed {seed} after {after}: done", flush=True)
     print(summary(rows))
     if "own" in args.variants:

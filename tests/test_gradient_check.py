@@ -41,6 +41,7 @@ def test_a_step_along_the_gradient_raises_the_models_return():
     ("phase_probe", ["--variants", "K9"], "unknown variant 'K9'"),
     ("phase_probe", ["--repeats", "0"], "--repeats takes 1 to 100"),
     ("phase_probe", ["--design", "tank"], "tank"),
+    ("phase_probe", ["--demos", "tank"], "tank"),
     ("phase_probe", ["--set", "batch=0"], "batch must be"),
     ("phase_probe", ["--set", "nope=1"], "--set nope=1"),
     ("clone_flips", ["--seeds", "-1"], "--seeds takes 0 to"),
@@ -118,6 +119,19 @@ def test_the_phase_probe_starts_where_the_run_is_and_runs_a_phase():
     assert all(r["distance_m"] != r["start_m"] for r in rows)
     assert rows[0]["validation_reward"] != rows[1]["validation_reward"]
     assert "| car, 2, 0 (" in pp.summary(rows)
+
+
+def test_the_phase_probe_starts_from_rlils_policy_with_demos():
+    """`--demos` (part 26): the starting policy is RL+IL's after `after` iterations (here 0: the
+    clone, the run's row 0), not plain RL's, and the phase is plain RL's (it moves the policy)."""
+    from experiments import phase_probe as pp
+    cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1, seed=2)
+    rows = pp.probe_rows("car", 2, 0, ["own"], repeats=1, base=cfg, demos=["car"])
+    clone = rlil.algorithm1(dataclasses.replace(cfg, demos=("wnwwnw",)), rlil.load_demos(
+        dataclasses.replace(cfg, demos=("wnwwnw",))), log=lambda m: None).metrics[0]
+    plain = rlil.algorithm1(cfg, {}, log=lambda m: None).metrics[0]
+    assert rows[0]["start_m"] == clone["distance_m"] != plain["distance_m"]
+    assert rows[0]["start_from"] == "RL+IL" and rows[0]["distance_m"] != rows[0]["start_m"]
 
 
 def test_the_phase_probe_table_reads_its_csv(tmp_path):
