@@ -1001,7 +1001,7 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
     if probes:
         with made_from(results / "phase_probe"):
             tables[results / "phase_probe.md"] = phase_probe.summary([r for path in probes for r in read_rows_csv(path)])
-    for name in ("phase_probe_walking", "phase_probe_walking_floor05"):   # parts 23 and 25: a policy that walks
+    for name in ("phase_probe_walking", "phase_probe_walking_floor05", "phase_probe_rlil"):   # parts 23, 25, 26
         probes = sorted((results / name).glob("*.csv"))
         if probes:
             with made_from(results / name):
