@@ -242,21 +242,33 @@ def claim_run_dir(out: Path):
     try:
         out.mkdir(parents=True, exist_ok=True)
         lock = open(out / LOCK, "a+")
-    except OSError as e:
+    except BaseException as e:               # OSError, or a signal while making it
         if created and out.is_dir():
             shutil.rmtree(out, ignore_errors=True)
+        if not isinstance(e, OSError):
+            raise
         raise UsageError(f"cannot write the run directory {out} ({e.strerror or type(e).__name__}): "
                          "name a directory you can write with --out")
     try:
-        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        lock.seek(0)
-        holder = lock.read().strip() or "another process"
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.seek(0)
+            holder = lock.read().strip() or "another process"
+            lock.close()
+            raise UsageError(f"{out} is being written by {holder}: wait for it to end, or name another --out")
+        lock.truncate(0)
+        lock.write(f"train.py (pid {os.getpid()})\n")
+        lock.flush()
+    except BaseException:                 # a signal (or a full disk) while claiming: no folder made here is left
+        if created and not lock.closed:   # ... unless another process holds it by now
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                shutil.rmtree(out, ignore_errors=True)
+            except OSError:
+                pass
         lock.close()
-        raise UsageError(f"{out} is being written by {holder}: wait for it to end, or name another --out")
-    lock.truncate(0)
-    lock.write(f"train.py (pid {os.getpid()})\n")
-    lock.flush()
+        raise
     return lock, created
 
 

@@ -68,6 +68,24 @@ def test_a_held_folder_refuses_a_second_writer_in_one_line(tmp_path, capsys):
     assert not created
 
 
+@pytest.mark.parametrize("where", ["open", "getpid"])
+def test_a_signal_while_claiming_leaves_no_folder_made_there(tmp_path, monkeypatch, where):
+    """A signal that arrives while the folder is being claimed (the lock file made, the lock not
+    yet written: the moment a busy machine's SIGTERM test once caught) removes the folder the claim
+    made, and leaves one that was there before."""
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(run_folders.os, "getpid", interrupt) if where == "getpid" else \
+        monkeypatch.setattr("builtins.open", interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        run_folders.claim_run_dir(tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "old").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        run_folders.claim_run_dir(tmp_path / "old")
+    assert (tmp_path / "old").is_dir()
+
+
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_after_the_first_checkpoint_says_what_was_kept_and_the_command_continues(tmp_path, signum):
     """Ctrl-C or SIGTERM (a scheduler's time limit) after iteration 0's checkpoint: exit 128 + signal,
