@@ -75,7 +75,9 @@ def test_a_signal_while_claiming_leaves_no_folder_made_there(tmp_path, monkeypat
     made, and leaves one that was there before."""
     def interrupt(*args, **kwargs):
         raise KeyboardInterrupt
-    monkeypatch.setattr(run_folders.os, "getpid", interrupt) if where == "getpid" else \
+    if where == "getpid":
+        monkeypatch.setattr(run_folders.os, "getpid", interrupt)
+    else:
         monkeypatch.setattr("builtins.open", interrupt)
     with pytest.raises(KeyboardInterrupt):
         run_folders.claim_run_dir(tmp_path / "new")
