@@ -277,7 +277,7 @@ ITERATION_TABLES = {   # results/<csv>.csv with FIGURE3_COLUMNS: results/<md>.md
     "figure3": ("figure3_iterations", ("RL+IL", "RL")),
     "class_demo": ("class_demo", ("RL",)),                       # the class demo command has no demos
 }
-TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability", "design"}
+TEXT_COLUMNS = {"variant", "panel", "train", "demos", "method", "cpu_capability", "design", "start_from"}
 BEGIN, END = "<!-- begin: results/{}.md -->", "<!-- end: results/{}.md -->"
 
 

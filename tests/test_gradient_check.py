@@ -136,15 +136,18 @@ def test_the_phase_probe_starts_from_rlils_policy_with_demos():
 
 def test_the_phase_probe_table_reads_its_csv(tmp_path):
     """results/phase_probe.md (tables.py) is `summary` of the CSVs as read back: columns in
-    VARIANTS' order whatever the CSV's, a missing cell "-", two starting points two rows."""
+    VARIANTS' order whatever the CSV's, a missing cell "-", two starting points two rows, and
+    `start_from` (RL or RL+IL) read back as text."""
     from experiments import phase_probe as pp
     from experiments.sweeps import write_rows_csv
     from experiments.tables import read_rows_csv
     rows = [{"design": "hexapod", "seed": seed, "after": 4, "start_m": 0.25, "variant": v, "repeat": r,
-             "distance_m": d + r, "reverts": 0, "validation_reward": 0.5}
+             "distance_m": d + r, "reverts": 0, "validation_reward": 0.5, "start_from": ("RL", "RL+IL")[seed]}
             for seed, v, d in ((0, "K480", 4.0), (0, "K120", 0.2), (1, "K120", 0.1)) for r in range(2)]
     write_rows_csv(tmp_path / "probe.csv", pp.COLUMNS, rows)
-    table = pp.summary(read_rows_csv(tmp_path / "probe.csv"))
+    read = read_rows_csv(tmp_path / "probe.csv")
+    assert [r["start_from"] for r in read] == [r["start_from"] for r in rows]     # text, as part 26 wrote it
+    table = pp.summary(read)
     assert table == pp.summary(rows)
     assert table.splitlines()[0] == "| design, seed, after (start, m) | K120 | K480 |"
     assert table.splitlines()[2:] == ["| hexapod, 0, 4 (0.25) | 0.20, 1.20 | 4.00, 5.00 |",
