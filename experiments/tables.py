@@ -552,6 +552,35 @@ def walk_rlil_ablation_table(results: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def il0_table(il0: Path, rlil_runs: Path) -> str:
+    """Markdown of part 27 (issue #34): RL+IL with lambda = 0 (line 1's clone and its roll-outs, then
+    plain RL's phases; `il0`/hexapod-hexapod-seed*/) against RL+IL (`rlil_runs`, the same seeds), on
+    the seeds both finished (15 iterations): per seed the distances at iterations 0, 5 and 15 and
+    d = (lambda = 0) - RL+IL at 15, then the means with their 95 % bootstrap CIs (d's over the
+    seeds' differences: the pairs share line 1).  A seed whose iteration 0 differs between the two
+    (another line 1) is listed and left out of the means.  "" when no seed has both."""
+    zero, base = seed_runs(il0, "hexapod-hexapod", finished=15), seed_runs(rlil_runs, "hexapod-hexapod", finished=15)
+    seeds = sorted(set(zero) & set(base))
+    if not seeds:
+        return ""
+    lines = ["| seed | iteration 0, both (m) | RL+IL at 5 / 15 (m) | λ = 0 at 5 / 15 (m) | d at 15 (m) |",
+             "|---|---|---|---|---|"]
+    paired = []
+    for s in seeds:
+        z, b = run_curve(zero[s]), run_curve(base[s])
+        same = z[0] == b[0]
+        start = f"{b[0]:.2f}" if same else f"differ: {b[0]:.2f} / {z[0]:.2f}, left out"
+        lines.append(f"| {s} | {start} | {b[5]:.2f} / {b[15]:.2f} | {z[5]:.2f} / {z[15]:.2f} | {z[15] - b[15]:+.2f} |")
+        if same:
+            paired.append((b[15], z[15]))
+    if paired:
+        b15, z15 = np.array(paired).T
+        lines.append(f"| mean at 15, {len(paired)} seeds | | {np.mean(b15):.2f} {interval(bootstrap_ci(b15))} "
+                     f"| {np.mean(z15):.2f} {interval(bootstrap_ci(z15))} "
+                     f"| {np.mean(z15 - b15):+.2f} {interval(bootstrap_ci(z15 - b15))} |")
+    return "\n".join(lines) + "\n"
+
+
 def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, more=()) -> str:
     """Markdown of issue #34's other marks on the 15-iteration hexapod runs, per variant of
     `folder`/<variant>/*-seed*/metrics.json (finished runs), then per (label, folder, run name) of
@@ -965,6 +994,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                 if table:                                                                     # (AMD AVX512)
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
                         results / "panel_a_candidates", ("walk_amd", variant))
+    if (results / "walk_il0_runs").is_dir():             # part 27: lambda = 0 after line 1, against RL+IL
+        with made_from(results / "walk_il0_runs"):
+            table = il0_table(results / "walk_il0_runs", results / "figure3_walk_k480b16_runs")
+            if table:
+                tables[results / "walk_il0.md"] = table
     if (results / "flattery_curve_runs").is_dir():
         with made_from(results / "flattery_curve_runs"):
             tables[results / "flattery_curve.md"] = flattery_curve_table(results / "flattery_curve_runs")

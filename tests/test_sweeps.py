@@ -338,6 +338,26 @@ def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     assert tables.plain_rl_same_cpu_table(tmp_path, ("apart",), "base") == ""
 
 
+def test_the_il0_table_pairs_finished_seeds_and_leaves_out_another_line_1(tmp_path):
+    """tables.il0_table (issue #34, part 27) on made-up runs: seed s of RL+IL walks to 20 + s m,
+    lambda = 0 to 18 + s m; seed 2's lambda = 0 run starts elsewhere (another line 1): listed, left
+    out of the means; an unfinished run has no row."""
+    def run(folder, seed, start, final, iters=15):
+        (tmp_path / folder / f"hexapod-hexapod-seed{seed}").mkdir(parents=True)
+        rows = [{"iteration": i, "distance_m": start + (final - start) * i / 15} for i in range(iters + 1)]
+        (tmp_path / folder / f"hexapod-hexapod-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    for seed in range(3):
+        run("rlil", seed, 5.0, 20.0 + seed)
+        run("il0", seed, 5.0 if seed < 2 else 6.0, 18.0 + seed)
+    run("rlil", 3, 5.0, 30.0)
+    run("il0", 3, 5.0, 30.0, iters=10)                                # unfinished: no row
+    table = tables.il0_table(tmp_path / "il0", tmp_path / "rlil").splitlines()
+    assert table[2] == "| 0 | 5.00 | 10.00 / 20.00 | 9.33 / 18.00 | -2.00 |"
+    assert table[4] == "| 2 | differ: 5.00 / 6.00, left out | 10.67 / 22.00 | 10.67 / 20.00 | -2.00 |"
+    assert table[5].startswith("| mean at 15, 2 seeds | | 20.50 [") and table[5].endswith("| -2.00 [-2.00, -2.00] |")
+    assert len(table) == 6 and tables.il0_table(tmp_path / "none", tmp_path / "rlil") == ""
+
+
 def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_path):
     """tables.plain_rl_targets_table on made-up 15-iteration runs: seed 0 is flattered by 1 m at
     iteration 1 and 0.2 m after, keeps every second new policy and falls 4 m from iteration 14 to 15;
