@@ -127,8 +127,8 @@ def test_the_phase_probe_starts_from_rlils_policy_with_demos():
     from experiments import phase_probe as pp
     cfg = rlil.preset("tiny", train=("car",), model_steps=100, iters=1, seed=2)
     rows = pp.probe_rows("car", 2, 0, ["own"], repeats=1, base=cfg, demos=["car"])
-    clone = rlil.algorithm1(dataclasses.replace(cfg, demos=("wnwwnw",)), rlil.load_demos(
-        dataclasses.replace(cfg, demos=("wnwwnw",))), log=lambda m: None).metrics[0]
+    with_demos = dataclasses.replace(cfg, demos=("wnwwnw",))
+    clone = rlil.algorithm1(with_demos, rlil.load_demos(with_demos), log=lambda m: None).metrics[0]
     plain = rlil.algorithm1(cfg, {}, log=lambda m: None).metrics[0]
     assert rows[0]["start_m"] == clone["distance_m"] != plain["distance_m"]
     assert rows[0]["start_from"] == "RL+IL" and rows[0]["distance_m"] != rows[0]["start_m"]
