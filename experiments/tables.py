@@ -608,6 +608,28 @@ def plain_rl_targets_table(folder: Path, variants=("data16_avx2",) + SAME_CPU, m
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
+def takeoff_aligned_table(runs: list, steps=(0, 3, 6, 9), walking_m: float = 10.0) -> str:
+    """Markdown of 15-iteration runs read from the iteration at which each seed first reaches
+    `walking_m` (issue #34, part 28): per (label, folder, run name) in `runs`, the finished seeds,
+    how many reach it, the mean and range of that iteration, the mean at 15, and for each k in `steps`
+    the mean distance k iterations after it over the seeds that ran that long (their number in
+    brackets).  Rows without a finished run are left out; "" when none has one."""
+    lines = [f"| runs | seeds | at {walking_m:g} m by 15 | first iteration at {walking_m:g} m: mean (range) "
+             "| mean at 15 (m) | " + " | ".join(f"+{k} (m, seeds)" for k in steps) + " |",
+             "|---" * (5 + len(steps)) + "|"]
+    for label, folder, name in runs:
+        curves = [run_curve(rows) for rows in seed_runs(folder, name, finished=15).values()]
+        if not curves:
+            continue
+        first = [next(i for i in sorted(c) if c[i] >= walking_m) for c in curves if max(c.values()) >= walking_m]
+        late = [[c[i + k] for c, i in zip((c for c in curves if max(c.values()) >= walking_m), first) if i + k in c]
+                for k in steps]
+        cells = " | ".join(f"{np.mean(v):.2f} ({len(v)})" if v else "-" for v in late)
+        span = f"{np.mean(first):.1f} ({min(first)}-{max(first)})" if first else "-"
+        lines.append(f"| {label} | {len(curves)} | {len(first)} | {span} | {np.mean([c[15] for c in curves]):.2f} | {cells} |")
+    return "\n".join(lines) + "\n" if len(lines) > 2 else ""
+
+
 PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, part 9): variant: (what differs, runs)
     "defaults": ("none: Figure 3's committed runs", ("figure3_runs", "leg_leg_wheel-rl")),
     "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "leg_leg_wheel-rl")),
@@ -988,12 +1010,24 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             table = panel_a_pairing_table(results / "panel_a_candidates")
             if table:
                 tables[results / "panel_a_pairing.md"] = table
-            for variant, name in (("walk_offset10", "offset"), ("walk_noise06", "noise"),   # against the walk, one CPU
-                                  ("walk_critic", "critic"), ("walk_tries3", "tries"), ("walk_k480", "k480"), ("walk_k480b16", "k480b16")):
-                table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline="walk_amd")
-                if table:                                                                     # (AMD AVX512)
+            for variant, name, baseline in (   # against the walk of then, one CPU (AMD AVX512) up to part 21
+                    ("walk_offset10", "offset", "walk_amd"), ("walk_noise06", "noise", "walk_amd"),
+                    ("walk_critic", "critic", "walk_amd"), ("walk_tries3", "tries", "walk_amd"),
+                    ("walk_k480", "k480", "walk_amd"), ("walk_k480b16", "k480b16", "walk_amd"),
+                    ("walk_t40", "t40", "walk_k480b16")):           # part 28: AVX2 against the AVX512 baseline
+                table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline=baseline)
+                if table:
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
-                        results / "panel_a_candidates", ("walk_amd", variant))
+                        results / "panel_a_candidates", (baseline, variant))
+    if (results / "figure3_walk_k480b16_runs").is_dir():  # part 28: the walk's curves from each seed's take-off
+        with made_from(results / "figure3_walk_k480b16_runs"):
+            table = takeoff_aligned_table([
+                ("RL (the walk)", results / "figure3_walk_k480b16_runs", "hexapod-rl"),
+                ("RL+IL (the walk)", results / "figure3_walk_k480b16_runs", "hexapod-hexapod"),
+                ("RL+IL, λ = 0 after line 1 (part 27)", results / "walk_il0_runs", "hexapod-hexapod"),
+                ("RL, T = 40 (part 28)", results / "panel_a_candidates" / "walk_t40", "hexapod-rl")])
+            if table:
+                tables[results / "walk_takeoff.md"] = table
     if (results / "walk_il0_runs").is_dir():             # part 27: lambda = 0 after line 1, against RL+IL
         with made_from(results / "walk_il0_runs"):
             table = il0_table(results / "walk_il0_runs", results / "figure3_walk_k480b16_runs")

@@ -358,6 +358,22 @@ def test_the_il0_table_pairs_finished_seeds_and_leaves_out_another_line_1(tmp_pa
     assert len(table) == 6 and tables.il0_table(tmp_path / "none", tmp_path / "rlil") == ""
 
 
+def test_the_takeoff_table_reads_each_seed_from_its_first_iteration_at_10_m(tmp_path):
+    """tables.takeoff_aligned_table (issue #34, part 28) on made-up runs: seed 0 walks 0.5 m more per
+    iteration (never 10 m: counted, not read), seed 1 2 m (10 m at iteration 5), seed 2 1 m (at 10);
+    a later step past iteration 15 has fewer seeds; an unfinished run is left out."""
+    def run(seed, per_iteration, iters=15):
+        rows = [{"iteration": i, "distance_m": per_iteration * i} for i in range(iters + 1)]
+        (tmp_path / f"hexapod-rl-seed{seed}").mkdir()
+        (tmp_path / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+    for seed, per_iteration in enumerate((0.5, 2.0, 1.0)):
+        run(seed, per_iteration)
+    run(3, 5.0, iters=10)                                                  # unfinished: left out
+    table = tables.takeoff_aligned_table([("RL", tmp_path, "hexapod-rl"), ("none", tmp_path, "hexapod-hexapod")])
+    assert table.splitlines()[2:] == ["| RL | 3 | 2 | 7.5 (5-10) | 17.50 | 10.00 (2) | 14.50 (2) | 22.00 (1) | 28.00 (1) |"]
+    assert tables.takeoff_aligned_table([("none", tmp_path, "hexapod-hexapod")]) == ""
+
+
 def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_path):
     """tables.plain_rl_targets_table on made-up 15-iteration runs: seed 0 is flattered by 1 m at
     iteration 1 and 0.2 m after, keeps every second new policy and falls 4 m from iteration 14 to 15;
@@ -504,7 +520,7 @@ def test_the_walk_preset_is_the_config_of_the_committed_walking_runs():
                "panel_a_candidates/walk_amd": k120, "panel_c_candidates/walk_amd": {**k120, "iters": 5},
                "seed_rate_runs/walk_panel_c": {**k120, "iters": 5},
                "panel_a_candidates/walk_k480b16": {}, "panel_c_candidates/walk_k480b16": {"iters": 5},
-               "figure3_walk_k480b16_runs": {}}
+               "figure3_walk_k480b16_runs": {}, "panel_a_candidates/walk_t40": {"horizon": 40}}
     for folder, flags in folders.items():
         paths = sorted(root.glob(f"{folder}/*-seed*/metrics.json"))
         assert len(paths) >= (10 if folder in ("figure3_walk_runs", "walk_panel_c_runs", "panel_a_candidates/walk_k480b16",
