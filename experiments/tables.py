@@ -1025,6 +1025,8 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                 ("RL (the walk)", results / "figure3_walk_k480b16_runs", "hexapod-rl"),
                 ("RL+IL (the walk)", results / "figure3_walk_k480b16_runs", "hexapod-hexapod"),
                 ("RL+IL, λ = 0 after line 1 (part 27)", results / "walk_il0_runs", "hexapod-hexapod"),
+                ("RL (the walk before part 21: K = 120 on batches of 64)", results / "figure3_walk_runs", "hexapod-rl"),
+                ("RL+IL (the walk before part 21)", results / "figure3_walk_runs", "hexapod-hexapod"),
                 ("RL, T = 40 (part 28)", results / "panel_a_candidates" / "walk_t40", "hexapod-rl")])
             if table:
                 tables[results / "walk_takeoff.md"] = table
