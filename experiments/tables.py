@@ -621,9 +621,9 @@ def takeoff_aligned_table(runs: list, steps=(0, 3, 6, 9), walking_m: float = 10.
         curves = [run_curve(rows) for rows in seed_runs(folder, name, finished=15).values()]
         if not curves:
             continue
-        first = [next(i for i in sorted(c) if c[i] >= walking_m) for c in curves if max(c.values()) >= walking_m]
-        late = [[c[i + k] for c, i in zip((c for c in curves if max(c.values()) >= walking_m), first) if i + k in c]
-                for k in steps]
+        walked = [(c, next(i for i in sorted(c) if c[i] >= walking_m)) for c in curves if max(c.values()) >= walking_m]
+        first = [i for _, i in walked]                                          # each walking seed's take-off
+        late = [[c[i + k] for c, i in walked if i + k in c] for k in steps]
         cells = " | ".join(f"{np.mean(v):.2f} ({len(v)})" if v else "-" for v in late)
         span = f"{np.mean(first):.1f} ({min(first)}-{max(first)})" if first else "-"
         lines.append(f"| {label} | {len(curves)} | {len(first)} | {span} | {np.mean([c[15] for c in curves]):.2f} | {cells} |")

@@ -11,6 +11,7 @@ import csv
 import json
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -302,12 +303,17 @@ def test_plan_commands_run_anywhere_and_collect_into_the_local_csv(local_sweep, 
     assert "Missing or failed runs" in (tmp_path / "out" / "figure3.md").read_text()
 
 
+def write_run(run_dir: Path, rows: list) -> None:
+    """A made-up run folder: run_dir/metrics.json holding `rows` as its iterations."""
+    run_dir.mkdir(parents=True)
+    (run_dir / "metrics.json").write_text(json.dumps({"iterations": rows}))
+
+
 def test_the_30_iteration_table_counts_seeds_at_10_m_and_skips_unfinished_runs(tmp_path):
     """tables.plain_rl_30_table (issue #34, part 4) on made-up runs: seed s walks s + 0.5 m per iteration."""
     for seed, iters in ((0, 30), (1, 30), (2, 20)):                  # seed 2 stopped at 20: left out
-        (tmp_path / f"hexapod-rl-seed{seed}").mkdir()
         rows = [{"iteration": i, "distance_m": (seed + 0.5) * i, "seconds": 2.0} for i in range(iters + 1)]
-        (tmp_path / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / f"hexapod-rl-seed{seed}", rows)
     table = tables.plain_rl_30_table(tmp_path).splitlines()
     assert table[2] == "| 0 | 7.50 | 10.00 | 12.50 | 15.00 | 30 |" and table[3].startswith("| 1 | 22.50 |")
     assert table[4] == "| 2 seeds: at 10 m | 1 of 2 | 2 of 2 | 2 of 2 | 2 of 2 | |"
@@ -319,9 +325,8 @@ def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     """tables.plain_rl_same_cpu_table (issue #34, parts 5-6) on made-up runs: only seeds that both the
     variant and the baseline finished (15 iterations) count, and a clear gain reads "holds"."""
     def run(variant, seed, final, iters=15):
-        (tmp_path / variant / f"hexapod-rl-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": final * i / iters} for i in range(iters + 1)]
-        (tmp_path / variant / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / variant / f"hexapod-rl-seed{seed}", rows)
     for seed, final in enumerate((1.0, 2.0, 3.0)):
         run("base", seed, final)
     run("base", 3, 50.0, iters=10)                                   # unfinished: left out
@@ -343,9 +348,8 @@ def test_the_il0_table_pairs_finished_seeds_and_leaves_out_another_line_1(tmp_pa
     lambda = 0 to 18 + s m; seed 2's lambda = 0 run starts elsewhere (another line 1): listed, left
     out of the means; an unfinished run has no row."""
     def run(folder, seed, start, final, iters=15):
-        (tmp_path / folder / f"hexapod-hexapod-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": start + (final - start) * i / 15} for i in range(iters + 1)]
-        (tmp_path / folder / f"hexapod-hexapod-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / folder / f"hexapod-hexapod-seed{seed}", rows)
     for seed in range(3):
         run("rlil", seed, 5.0, 20.0 + seed)
         run("il0", seed, 5.0 if seed < 2 else 6.0, 18.0 + seed)
@@ -364,8 +368,7 @@ def test_the_takeoff_table_reads_each_seed_from_its_first_iteration_at_10_m(tmp_
     a later step past iteration 15 has fewer seeds; an unfinished run is left out."""
     def run(seed, per_iteration, iters=15):
         rows = [{"iteration": i, "distance_m": per_iteration * i} for i in range(iters + 1)]
-        (tmp_path / f"hexapod-rl-seed{seed}").mkdir()
-        (tmp_path / f"hexapod-rl-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / f"hexapod-rl-seed{seed}", rows)
     for seed, per_iteration in enumerate((0.5, 2.0, 1.0)):
         run(seed, per_iteration)
     run(3, 5.0, iters=10)                                                  # unfinished: left out
@@ -385,8 +388,7 @@ def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_p
             d = i - (5.0 if fall_at is not None and i > fall_at else 0.0)
             rows.append({"iteration": i, "distance_m": d, "sim_progress_m": 0.5,
                          "model_progress_m": 0.5 + flattery(i), "kept_new": kept(i)})
-        (tmp_path / f"{where}-seed{seed}").mkdir(parents=True)
-        (tmp_path / f"{where}-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / f"{where}-seed{seed}", rows)
     run(0, lambda i: 1.0 if i == 1 else 0.2, lambda i: i % 2 == 0, fall_at=14)
     run(1, lambda i: 0.2, lambda i: False, start=4.5)
     run(2, lambda i: 9.0, lambda i: True, iters=10)                     # unfinished: left out
@@ -403,9 +405,8 @@ def test_the_same_seed_area_table_pairs_seeds_and_skips_unfinished_runs(tmp_path
     """tables.same_seed_area_table on made-up 5-iteration runs: the candidate walks 1 m more at
     every iteration on seeds 0 and 1; the baseline's seed 2 is unfinished and left out."""
     def run(folder, seed, shift, iters=5):
-        (tmp_path / folder / f"x-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": i + shift, "seconds": 10.0} for i in range(iters + 1)]
-        (tmp_path / folder / f"x-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / folder / f"x-seed{seed}", rows)
     for seed in (0, 1, 2):
         run("new", seed, seed + 1.0)
     run("old", 0, 0.0), run("old", 1, 1.0), run("old", 2, 2.0, iters=3)
@@ -423,9 +424,8 @@ def test_the_panel_c_budget_table_counts_convergence_on_the_committed_line(tmp_p
     candidate (walk_wheel_splines) is compared with its ablation row (walk_amd), and the RL+IL
     runs in its folder are left out of its (plain RL) row."""
     def run(folder, name, seed, curve):
-        (tmp_path / "results" / folder / f"{name}-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": d, "seconds": 10.0} for i, d in enumerate(curve)]
-        (tmp_path / "results" / folder / f"{name}-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / "results" / folder / f"{name}-seed{seed}", rows)
     for seed in (0, 1):
         run("figure3_runs", "leg_leg_wheel-hexapod_car", seed, [5, 20, 20, 20, 20, 20])
         run("walk_panel_c_runs", "leg_leg_wheel-rl", seed, [0, 19, 19, 19, 19, 19])
@@ -457,9 +457,8 @@ def test_the_seed_rate_table_counts_converged_fallen_and_falling_seeds_with_thei
     and seed 0 only at iteration 1, which #33's rule does not count, while both fall by more than
     3 m (seed 0 from iteration 0 to 1, which #34's mark counts)."""
     def run(folder, name, seed, curve):
-        (tmp_path / folder / f"{name}-seed{seed}").mkdir(parents=True)
         rows = [{"iteration": i, "distance_m": d, "seconds": 10.0} for i, d in enumerate(curve)]
-        (tmp_path / folder / f"{name}-seed{seed}" / "metrics.json").write_text(json.dumps({"iterations": rows}))
+        write_run(tmp_path / folder / f"{name}-seed{seed}", rows)
     run("figure3_runs", "leg_leg_wheel-hexapod_car", 0, [5, 20, 20, 20, 20, 20])
     run("figure3_runs", "leg_leg_wheel-rl", 0, [0, 1, 1, 1, 1, 1])
     run("walk_panel_c_runs", "leg_leg_wheel-rl", 0, [0, 1, 1, 1, 1, 17.99])
