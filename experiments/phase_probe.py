@@ -20,7 +20,7 @@ draws the buffer's initial states: from T_train (Algorithm 1) or from the simula
 distribution p(s) (`sim2d.sample_initial_states`), all or half of them; and (part 23, a policy
 that already walks) the noise of L_RL's model roll-outs: none (the mean action, as the
 evaluation runs it) or a lower floor under the policy's log-std for the phase; (part 25) a higher
-floor.
+floor; (part 29, a policy that has not taken off at the walk) four times the walk's steps.
 
     python experiments/phase_probe.py --preset walk --seeds 1 4 5 7 --after 7 --variants own det floor25 T40 lr3e-4 K120_B16
 """
@@ -70,6 +70,8 @@ VARIANTS = {
     "floor25": ({}, 0.0),               # the policy's log-std floor at -2.5 (the defaults') for the phase
     # part 25: more noise than the walk's floor
     "floor05": ({}, 0.0),               # the policy's log-std floor at -0.5 for the phase (std >= 0.61)
+    # part 29: a policy that has not taken off at the walk
+    "K1920_B16": ({"policy_steps": 1920, "batch": 16}, 0.0),   # four times the walk's phase
 }
 NOISE = {"det": "mean", "floor25": -2.5, "floor05": -0.5}   # the variants that change L_RL's noise (`phase_noise`)
 
