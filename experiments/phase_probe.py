@@ -204,6 +204,27 @@ def gains(rows: list[dict], reference: str = "own", walking_m: float = 10.0) -> 
     return "\n".join(lines) + "\n"
 
 
+def takeoff(rows: list[dict], reference: str = "own", line_m: float = 2.0, above_m: float = 1.0) -> str:
+    """Markdown, part 29's rule for stalled starting points: per point, each variant's mean distance
+    over the repeats; per variant, the points where it walks (a mean of `line_m` or more) and is at
+    least `above_m` above `reference`'s mean."""
+    variants = [v for v in VARIANTS if any(r["variant"] == v for r in rows)]
+    points = list(dict.fromkeys((r["design"], int(r["seed"]), int(r["after"]), float(r["start_m"])) for r in rows))
+    mean = {(p, v): float(np.mean(d)) for p in points for v in variants
+            if (d := [float(r["distance_m"]) for r in rows
+                      if (r["design"], int(r["seed"]), int(r["after"]), r["variant"]) == (*p[:3], v)])}
+    lines = ["| design, seed, after (start, m) | " + " | ".join(f"{v}: mean (m)" for v in variants) + " |",
+             "|---|" + "---|" * len(variants)]
+    for p in points:
+        lines.append(f"| {p[0]}, {p[1]}, {p[2]} ({p[3]:.2f}) | "
+                     + " | ".join(f"{mean[p, v]:.2f}" if (p, v) in mean else "-" for v in variants) + " |")
+    lines.append(f"| points where it walks ({line_m:g} m or more) and is {above_m:g} m or more above {reference} | "
+                 + " | ".join("-" if v == reference else
+                              f"{sum((p, v) in mean and (p, reference) in mean and mean[p, v] >= line_m and mean[p, v] >= mean[p, reference] + above_m for p in points)} of "
+                              f"{sum((p, v) in mean and (p, reference) in mean for p in points)}" for v in variants) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     parser = sim2d.CliParser(description=__doc__.split("\n")[0])
     parser.add_argument("--preset", default="default", help="Algorithm 1's budget (walk: panel (a)'s)")

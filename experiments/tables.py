@@ -1077,6 +1077,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
             with made_from(results / name):
                 rows = [r for path in probes for r in read_rows_csv(path)]
                 tables[results / f"{name}.md"] = phase_probe.summary(rows) + "\n" + phase_probe.gains(rows)
+    probes = sorted((results / "phase_probe_takeoff").glob("*.csv"))     # part 29: stalled starting points
+    if probes:
+        with made_from(results / "phase_probe_takeoff"):
+            rows = [r for path in probes for r in read_rows_csv(path)]
+            tables[results / "phase_probe_takeoff.md"] = phase_probe.summary(rows) + "\n" + phase_probe.takeoff(rows)
     for name in ("side_by_side", "side_by_side_fine"):   # experiments/side_by_side.py (fine: --ppo-eval-every)
         if not (results / f"{name}.csv").exists():
             continue

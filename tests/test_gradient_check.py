@@ -182,6 +182,19 @@ def test_the_phase_probe_noise_variants_change_the_phase_and_only_it():
     assert -1.0 <= rows[0]["start_log_std"] <= 0.0
 
 
+def test_the_takeoff_probe_counts_points_that_walk_and_beat_own_by_a_metre():
+    """`takeoff` (part 29's rule): per point the mean over the repeats; a variant counts at a point
+    only if its mean is at least 2 m and at least 1 m above `own`'s there."""
+    from experiments import phase_probe as pp
+    means = {0: (0.0, 2.5), 1: (1.5, 2.4), 3: (0.2, 1.9)}      # own, K1920_B16: walks; too close to own; short of 2 m
+    rows = [{"design": "hexapod", "seed": s, "after": 2, "start_m": 0.1, "variant": v, "repeat": r,
+             "distance_m": m + (r - 1) * 0.5, "reverts": 0, "validation_reward": 0.3}
+            for s, pair in means.items() for v, m in zip(("own", "K1920_B16"), pair) for r in range(3)]
+    lines = pp.takeoff(rows).splitlines()
+    assert lines[2] == "| hexapod, 0, 2 (0.10) | 0.00 | 2.50 |"
+    assert lines[-1].endswith("| - | 1 of 3 |")
+
+
 def test_the_walking_probe_gains_count_only_walking_points():
     """`gains` (part 23's rule): a variant's gain is its mean over the repeats minus `own`'s,
     averaged over the starting points at 10 m or more only, with the points where it is above."""
