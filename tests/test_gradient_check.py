@@ -6,6 +6,7 @@ import pytest
 import torch
 
 import modular_rlil_minimal as rlil
+import sim2d
 from experiments import gradient_check as gc
 from gnn import ModularPolicy
 
@@ -119,6 +120,29 @@ def test_the_phase_probe_starts_where_the_run_is_and_runs_a_phase():
     assert all(r["distance_m"] != r["start_m"] for r in rows)
     assert rows[0]["validation_reward"] != rows[1]["validation_reward"]
     assert "| car, 2, 0 (" in pp.summary(rows)
+
+
+def test_the_ensemble_runs_each_row_on_one_member_and_the_probe_phases_on_it():
+    """`Ensemble` (part 30): row b of a batch goes through member b mod E, with the gradient, and
+    `probe_rows` fits the extra members and runs the phase on all of them (the ensemble's phase
+    differs from the single model's, from the same start and draws)."""
+    from experiments import phase_probe as pp
+    cfg = rlil.preset("tiny", train=("car",), model_steps=50, iters=1, seed=2)
+    policy, model, traj, _ = pp.starting_point(cfg, 0)
+    graph = sim2d.design_graph(traj.design)
+    ens = pp.ensemble_at(model, traj, cfg, 3)
+    assert len(ens.members) == 3 and ens.members[0] is model
+    s = rlil.sample_sim_states(traj, 7, np.random.default_rng(0)).requires_grad_(True)
+    a = torch.zeros(7, graph.action_dim)
+    out = ens.on_design(graph)(s, a)
+    singles = [m.on_design(graph)(s, a) for m in ens.members]
+    for b in range(7):
+        assert torch.allclose(out[b], singles[b % 3][b], atol=1e-5)          # another batch, other rounding
+    assert (singles[1] - singles[0]).abs().max() > 1e-2                  # the members differ
+    out.sum().backward()
+    assert s.grad is not None and torch.isfinite(s.grad).all()
+    rows = pp.probe_rows("car", 2, 0, ["own", "ens4"], repeats=1, base=dataclasses.replace(cfg, model_steps=50))
+    assert rows[0]["start_m"] == rows[1]["start_m"] and rows[0]["distance_m"] != rows[1]["distance_m"]
 
 
 def test_the_phase_probe_starts_from_rlils_policy_with_demos():
