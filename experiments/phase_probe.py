@@ -263,10 +263,13 @@ def takeoff(rows: list[dict], reference: str = "own", line_m: float = 2.0, above
     for p in points:
         lines.append(f"| {p[0]}, {p[1]}, {p[2]} ({p[3]:.2f}) | "
                      + " | ".join(f"{mean[p, v]:.2f}" if (p, v) in mean else "-" for v in variants) + " |")
+
+    def counted(v: str) -> str:
+        both = [p for p in points if (p, v) in mean and (p, reference) in mean]
+        walks = [p for p in both if mean[p, v] >= max(line_m, mean[p, reference] + above_m)]
+        return "-" if v == reference else f"{len(walks)} of {len(both)}"
     lines.append(f"| points where it walks ({line_m:g} m or more) and is {above_m:g} m or more above {reference} | "
-                 + " | ".join("-" if v == reference else
-                              f"{sum((p, v) in mean and (p, reference) in mean and mean[p, v] >= line_m and mean[p, v] >= mean[p, reference] + above_m for p in points)} of "
-                              f"{sum((p, v) in mean and (p, reference) in mean for p in points)}" for v in variants) + " |")
+                 + " | ".join(map(counted, variants)) + " |")
     return "\n".join(lines) + "\n"
 
 
