@@ -504,12 +504,15 @@ def finals_at_15(folder: Path) -> dict:
 SAME_CPU = ("data16_stdmin10", "data16_stdmin05", "data16_recent05", "data16_waves", "data16_waves_stdmin10")   # variants read against data16 on their CPU (AVX2)
 
 
-def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "data16_avx2") -> str:
+def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "data16_avx2",
+                            seeds_needed: int | None = None) -> str:
     """Markdown of plain RL's hexapod at data16 (issue #34, parts 5 and 6): each variant in `variants`
     against `baseline`, both from `folder`/<variant>/*-seed*/metrics.json, on the seeds both finished
     (15 iterations): seeds at 10 m at iteration 15, the means at 15 with their 95 % bootstrap CIs,
     the difference of the means with its CI and verdict (stats.verdict: "holds" if above 0), and
-    P(variant > baseline) with its CI.  "" when no variant shares a finished seed with the baseline."""
+    P(variant > baseline) with its CI.  With `seeds_needed` (a rule over that many seeds), fewer shared
+    seeds read "not decided (n of N seeds)" instead of a verdict.  "" when no variant shares a finished
+    seed with the baseline."""
     base = finals_at_15(folder / baseline)
     lines = [f"| variant | seeds | at 10 m by 15 | mean at 15 (m) [95 % CI] | {baseline}, same seeds (m) "
              "| difference (m) [95 % CI] | verdict | P(variant > baseline) [95 % CI] |",
@@ -524,7 +527,8 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
         lines.append(f"| {variant} | {len(seeds)} ({seeds[0]}-{seeds[-1]}) | {sum(d >= 10 for d in x)} of {len(x)}, "
                      f"{baseline} {sum(d >= 10 for d in y)} | {np.mean(x):.2f} {interval(bootstrap_ci(x))} "
                      f"| {np.mean(y):.2f} {interval(bootstrap_ci(y))} | {np.mean(x) - np.mean(y):+.2f} {interval(diff)} "
-                     f"| {verdict(diff)} | {probability_of_improvement(x, y):.2f} "
+                     f"| {verdict(diff) if len(seeds) >= (seeds_needed or 0) else f'not decided ({len(seeds)} of {seeds_needed} seeds)'} "
+                     f"| {probability_of_improvement(x, y):.2f} "
                      f"{interval(probability_of_improvement_ci(x, y))} |")
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
@@ -1015,7 +1019,8 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                     ("walk_critic", "critic", "walk_amd"), ("walk_tries3", "tries", "walk_amd"),
                     ("walk_k480", "k480", "walk_amd"), ("walk_k480b16", "k480b16", "walk_amd"),
                     ("walk_t40", "t40", "walk_k480b16")):           # part 28: AVX2 against the AVX512 baseline
-                table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline=baseline)
+                table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline=baseline,
+                                                seeds_needed=10)    # parts 17-28: rules over seeds 0-9
                 if table:
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
                         results / "panel_a_candidates", (baseline, variant))

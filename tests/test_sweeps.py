@@ -341,6 +341,9 @@ def test_the_same_cpu_table_compares_on_shared_finished_seeds(tmp_path):
     assert len(table) == 3 and table[2].startswith("| up | 3 (0-2) | 3 of 3, base 0 | 12.00 [")
     assert "| 2.00 [" in table[2] and "| +10.00 [" in table[2] and "| holds | 1.00 [1.00, 1.00] |" in table[2]
     assert tables.plain_rl_same_cpu_table(tmp_path, ("apart",), "base") == ""
+    short = tables.plain_rl_same_cpu_table(tmp_path, ("up",), "base", seeds_needed=10).splitlines()[2]
+    assert "| not decided (3 of 10 seeds) |" in short and "holds" not in short         # a rule over 10 seeds
+    assert "| holds |" in tables.plain_rl_same_cpu_table(tmp_path, ("up",), "base", seeds_needed=3)
 
 
 def test_the_il0_table_pairs_finished_seeds_and_leaves_out_another_line_1(tmp_path):
