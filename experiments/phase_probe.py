@@ -84,8 +84,8 @@ class Ensemble:
     """Models as one: f(s, a) runs row b of the batch on member b mod E, so each of the phase's
     roll-outs (a row from line 9 to 15) stays on one member for its whole length (PETS'
     "TS-infinity", Chua et al. 2018; ME-TRPO's ensemble, Kurutach et al. 2018). A gait that only
-    one member believes in gains on a quarter of the roll-outs; one that every member agrees on
-    gains on all of them."""
+    one member believes in gains on 1/E of the roll-outs; one that every member agrees on gains
+    on all of them."""
 
     def __init__(self, members):
         self.members = list(members)
