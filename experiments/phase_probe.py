@@ -205,18 +205,24 @@ def probe_rows(design: str, seed: int, after: int, variants, repeats: int,
     return rows
 
 
-def summary(rows: list[dict]) -> str:
-    """Markdown: per starting point, each variant's distances after one phase."""
+def by_point(rows: list[dict]):
+    """The probe's rows grouped: the variants present (in VARIANTS' order), the starting points
+    (design, seed, after, start_m) in the rows' order, and {(design, seed, after, variant): distances}."""
     variants = [v for v in VARIANTS if any(r["variant"] == v for r in rows)]
     points = list(dict.fromkeys((r["design"], int(r["seed"]), int(r["after"]), float(r["start_m"])) for r in rows))
+    distances = {}
+    for r in rows:
+        distances.setdefault((r["design"], int(r["seed"]), int(r["after"]), r["variant"]), []).append(float(r["distance_m"]))
+    return variants, points, distances
+
+
+def summary(rows: list[dict]) -> str:
+    """Markdown: per starting point, each variant's distances after one phase."""
+    variants, points, distances = by_point(rows)
     lines = ["| design, seed, after (start, m) | " + " | ".join(variants) + " |",
              "|---|" + "---|" * len(variants)]
     for design, seed, after, start_m in points:
-        cells = []
-        for v in variants:
-            d = [float(r["distance_m"]) for r in rows if (r["design"], int(r["seed"]), int(r["after"]), r["variant"])
-                 == (design, seed, after, v)]
-            cells.append(", ".join(f"{x:.2f}" for x in d) if d else "-")
+        cells = [", ".join(f"{x:.2f}" for x in distances.get((design, seed, after, v), [])) or "-" for v in variants]
         lines.append(f"| {design}, {seed}, {after} ({start_m:.2f}) | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -225,8 +231,10 @@ def gains(rows: list[dict], reference: str = "own", walking_m: float = 10.0) -> 
     """Markdown, part 23's rule: per variant, over the starting points at `walking_m` or more, the
     mean of (its mean distance over the repeats - `reference`'s) and at how many points it is above;
     and the starting points' log-std (`mean_log_std`)."""
+    variants, _, distances = by_point(rows)
+
     def mean_at(point, v):
-        d = [float(r["distance_m"]) for r in rows if (r["design"], int(r["seed"]), int(r["after"]), r["variant"]) == (*point, v)]
+        d = distances.get((*point, v))
         return float(np.mean(d)) if d else None
     starts = {(r["design"], int(r["seed"]), int(r["after"])): (float(r["start_m"]), r.get("start_log_std") or "")
               for r in rows}
@@ -238,7 +246,7 @@ def gains(rows: list[dict], reference: str = "own", walking_m: float = 10.0) -> 
              "",
              f"| variant | mean distance after one phase (m) | gain over {reference} (m) | points above {reference} |",
              "|---|---|---|---|"]
-    for v in [v for v in VARIANTS if any(r["variant"] == v for r in rows)]:
+    for v in variants:
         at = [(p, mean_at(p, v)) for p in walking if mean_at(p, v) is not None]
         if not at:
             continue
@@ -253,11 +261,8 @@ def takeoff(rows: list[dict], reference: str = "own", line_m: float = 2.0, above
     """Markdown, part 29's rule for stalled starting points: per point, each variant's mean distance
     over the repeats; per variant, the points where it walks (a mean of `line_m` or more) and is at
     least `above_m` above `reference`'s mean."""
-    variants = [v for v in VARIANTS if any(r["variant"] == v for r in rows)]
-    points = list(dict.fromkeys((r["design"], int(r["seed"]), int(r["after"]), float(r["start_m"])) for r in rows))
-    mean = {(p, v): float(np.mean(d)) for p in points for v in variants
-            if (d := [float(r["distance_m"]) for r in rows
-                      if (r["design"], int(r["seed"]), int(r["after"]), r["variant"]) == (*p[:3], v)])}
+    variants, points, distances = by_point(rows)
+    mean = {(p, v): float(np.mean(distances[(*p[:3], v)])) for p in points for v in variants if (*p[:3], v) in distances}
     lines = ["| design, seed, after (start, m) | " + " | ".join(f"{v}: mean (m)" for v in variants) + " |",
              "|---|" + "---|" * len(variants)]
     for p in points:

@@ -524,11 +524,11 @@ def plain_rl_same_cpu_table(folder: Path, variants=SAME_CPU, baseline: str = "da
             continue
         x, y = [own[s] for s in seeds], [base[s] for s in seeds]
         diff = bootstrap_diff_ci(x, y)
+        decided = verdict(diff) if len(seeds) >= (seeds_needed or 0) else f"not decided ({len(seeds)} of {seeds_needed} seeds)"
         lines.append(f"| {variant} | {len(seeds)} ({seeds[0]}-{seeds[-1]}) | {sum(d >= 10 for d in x)} of {len(x)}, "
                      f"{baseline} {sum(d >= 10 for d in y)} | {np.mean(x):.2f} {interval(bootstrap_ci(x))} "
                      f"| {np.mean(y):.2f} {interval(bootstrap_ci(y))} | {np.mean(x) - np.mean(y):+.2f} {interval(diff)} "
-                     f"| {verdict(diff) if len(seeds) >= (seeds_needed or 0) else f'not decided ({len(seeds)} of {seeds_needed} seeds)'} "
-                     f"| {probability_of_improvement(x, y):.2f} "
+                     f"| {decided} | {probability_of_improvement(x, y):.2f} "
                      f"{interval(probability_of_improvement_ci(x, y))} |")
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
