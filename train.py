@@ -44,7 +44,7 @@ import modular_rlil_minimal as rlil
 import ppo_minimal as ppo_lib
 import sim2d
 from experiments import sweeps, transfer
-from experiments.run_folders import (Interrupted, UsageError, WriteError, all_flags, check_output_file,
+from experiments.run_folders import (Interrupted, UsageError, WriteError, all_flags, claim_output_file,
                                      claim_run_dir, config_flags, config_from_dict, is_ppo, load_checkpoint,
                                      load_policy, ppo_flags, prepare_run_dir, restore_run, run_name, save_checkpoint,
                                      save_curve, save_metrics, save_rollouts, write_or_say)
@@ -153,8 +153,8 @@ def evaluate_run(run_dir: Path, design: str, gif: str | None = None, png: str | 
                  force: bool = False) -> float:
     """Zero-shot or not: the saved policy on any design, distance in 200 steps from the run's
     evaluation starts."""
-    check_output_file(gif, ".gif", "--gif", force)
-    check_output_file(png, ".png", "--png", force)
+    claim_output_file(gif, ".gif", "--gif", force)
+    claim_output_file(png, ".png", "--png", force)
     cfg, policy, iteration = load_policy(run_dir)
     torch.set_num_threads(cfg.threads)                  # as the run evaluated itself
     graph = sim2d.design_graph(design)

@@ -25,7 +25,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 import demos as demo_lib                                                                      # noqa: E402
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import sim2d                                                                                 # noqa: E402
-from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.run_folders import UsageError, claim_output_file                            # noqa: E402
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
 COLUMNS = ["train", "demos", "seed", "distance_m", "flipped", "starts"]
@@ -57,7 +57,7 @@ def main(argv=None) -> int:
         cfg = dataclasses.replace(rlil.Config(), train=tuple(map(sim2d.parse_design, args.train)),
                                   demos=tuple(map(sim2d.parse_design, args.demos)))
         rlil.validate_config(cfg)
-        check_output_file(args.out, ".csv", "--out", args.force)
+        claim_output_file(args.out, ".csv", "--out", args.force)
     except (ValueError, UsageError) as e:
         parser.error(str(e))
     if any(not 0 <= s <= rlil.MAX_SEED for s in args.seeds):

@@ -33,7 +33,7 @@ import modular_rlil_minimal as rlil                                             
 import sim2d                                                                                 # noqa: E402
 from experiments.gradient_check import starting_point                                        # noqa: E402
 from experiments.model_replay import with_settings                                           # noqa: E402
-from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.run_folders import UsageError, claim_output_file                            # noqa: E402
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
 COLUMNS = ["design", "seed", "after", "step", "model_progress_m", "sim_progress_m", "flattery_m",
@@ -105,7 +105,7 @@ def main(argv=None) -> int:
         design = sim2d.parse_design(args.design)
         base = with_settings(dataclasses.replace(rlil.preset(args.preset), train=(design,), demos=()), args.set)
         rlil.validate_config(base)
-        check_output_file(args.out, ".csv", "--out", args.force)
+        claim_output_file(args.out, ".csv", "--out", args.force)
     except (ValueError, UsageError) as e:
         parser.error(str(e))
     for name, values, lo, hi in (("--after", args.after, 0, 50), ("--seeds", args.seeds, 0, rlil.MAX_SEED)):

@@ -38,7 +38,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import sim2d                                                                                 # noqa: E402
-from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.run_folders import UsageError, claim_output_file                            # noqa: E402
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
 COLUMNS = ["design", "seed", "after", "horizon", "probe", "real_T", "real_episode", "model_T"]
@@ -146,7 +146,7 @@ def main(argv=None) -> int:
         if any(not lo <= v <= hi for v in values):
             parser.error(f"{name} takes {lo} to {hi}")
     try:
-        check_output_file(args.out, ".csv", "--out", args.force)
+        claim_output_file(args.out, ".csv", "--out", args.force)
     except UsageError as e:
         parser.error(str(e))
     try:

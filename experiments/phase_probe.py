@@ -44,7 +44,7 @@ import modular_rlil_minimal as rlil                                             
 import sim2d                                                                                 # noqa: E402
 from experiments.gradient_check import starting_point                                        # noqa: E402
 from experiments.model_replay import with_settings                                           # noqa: E402
-from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.run_folders import UsageError, claim_output_file                            # noqa: E402
 from experiments.sweeps import write_rows_csv                                                # noqa: E402
 
 COLUMNS = ["design", "seed", "after", "start_m", "variant", "repeat", "distance_m", "reverts", "validation_reward",
@@ -301,7 +301,7 @@ def main(argv=None) -> int:
             sim2d.parse_design(d)
         base = with_settings(rlil.preset(args.preset), args.set)
         rlil.validate_config(base)
-        check_output_file(args.out, ".csv", "--out", args.force)
+        claim_output_file(args.out, ".csv", "--out", args.force)
     except (ValueError, UsageError) as e:
         parser.error(str(e))
     unknown = [v for v in args.variants if v not in VARIANTS]

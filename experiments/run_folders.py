@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import fcntl
+import hashlib
 import json
 import os
 import shutil
@@ -297,9 +298,16 @@ def write_or_say(path: Path, write) -> None:
         raise WriteError(f"cannot write {path} ({reason})") from e
 
 
-def check_output_file(path, suffix: str, flag: str, force: bool) -> None:
+OUTPUT_LOCKS = Path(tempfile.gettempdir()) / f"modular-rlil-locks-{os.getuid()}"
+_claimed: dict[str, object] = {}    # the output files this process holds: resolved path -> open lock file
+
+
+def claim_output_file(path, suffix: str, flag: str, force: bool) -> None:
     """Before any work: `path` (None: nothing asked) must end in `suffix`, sit in an existing folder
-    this process can write, and not be a folder or (without `force`) an existing file."""
+    this process can write, and not be a folder or (without `force`) an existing file.  Then the
+    file is this process's until it ends, as claim_run_dir holds a run folder: a second process
+    naming it, at whatever moment it starts, gets a UsageError naming the holder.  The lock is an
+    flock on a file in OUTPUT_LOCKS named after the path, so nothing is left beside the output."""
     if path is None:
         return
     path = Path(path)
@@ -313,7 +321,22 @@ def check_output_file(path, suffix: str, flag: str, force: bool) -> None:
         tempfile.TemporaryFile(dir=path.parent).close()
     except OSError as e:
         raise UsageError(f"{flag} {path}: cannot write in {path.parent} ({e.strerror or type(e).__name__})")
-    if path.exists() and not force:
+    key = str(path.resolve())
+    if key not in _claimed:
+        OUTPUT_LOCKS.mkdir(exist_ok=True)
+        lock = open(OUTPUT_LOCKS / (hashlib.sha1(key.encode()).hexdigest()[:20] + ".lock"), "a+")
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.seek(0)
+            holder = lock.read().strip() or "another process"
+            lock.close()
+            raise UsageError(f"{path} is being written by {holder}: wait for it to end, or name another file")
+        lock.truncate(0)
+        lock.write(f"{Path(sys.argv[0]).name} (pid {os.getpid()})\n")
+        lock.flush()
+        _claimed[key] = lock
+    if path.exists() and not force:          # read under the lock: a holder that just finished wrote it
         raise UsageError(f"{path} already exists: use --force to replace it, or name another file")
 
 

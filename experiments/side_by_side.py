@@ -22,7 +22,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import sim2d                                                                                 # noqa: E402
-from experiments.run_folders import UsageError, check_output_file                            # noqa: E402
+from experiments.run_folders import UsageError, claim_output_file                            # noqa: E402
 from experiments.sweeps import (SAMPLE_COLUMNS, SAMPLE_EFFICIENCY, sample_efficiency_rows,   # noqa: E402
                                write_rows_csv)
 
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     if not 1 <= args.seeds <= 100 or not 1 <= args.seconds <= 36000:
         parser.error("--seeds takes 1 to 100 and --seconds 1 to 36000")
     try:
-        check_output_file(args.csv, ".csv", "--csv", args.force)
+        claim_output_file(args.csv, ".csv", "--csv", args.force)
         pairs = [commands(args.design, seed, args.out, args.ppo_eval_every) for seed in range(args.seeds)]
         taken = [d for pair in pairs for d, _ in pair.values() if d.exists()]
         if taken:                                           # never over a run the user has

@@ -37,7 +37,7 @@ if __package__ in (None, ""):              # run as a script: the stage files ar
 import demos                                                                                 # noqa: E402
 import modular_rlil_minimal as rlil                                                          # noqa: E402
 import sim2d                                                                                 # noqa: E402
-from experiments.run_folders import (UsageError, check_new, check_output_file, load_policy,  # noqa: E402
+from experiments.run_folders import (UsageError, check_new, claim_output_file, load_policy,  # noqa: E402
                                      method_of)
 from experiments.stats import bootstrap_ci                                                   # noqa: E402
 from sim2d import atomic_write                                                               # noqa: E402
@@ -403,8 +403,8 @@ def compare(run_a, run_b, gif, design: str | None = None, png: str | None = None
         graph = sim2d.design_graph(design or a.cfg.train[0])
     except ValueError as e:
         raise UsageError(str(e))
-    check_output_file(gif, ".gif", "--gif", force)
-    check_output_file(png, ".png", "--png", force)
+    claim_output_file(gif, ".gif", "--gif", force)
+    claim_output_file(png, ".png", "--png", force)
     trajectories = compare_trajectories(a, b, graph.code)
     labels = [run.label for run in (a, b)]
     for run, s in zip((a, b), trajectories):

@@ -223,3 +223,32 @@ def test_resume_of_a_policy_file_is_refused_in_one_line(finished, tmp_path, caps
 def test_bad_values_name_the_field_and_what_is_accepted(tmp_path, capsys, flag, value, says):
     err = one_line_error([*TINY, flag, value, "--out", str(tmp_path / "run")], capsys)
     assert says in err and not (tmp_path / "run").exists()
+
+
+def test_an_output_file_is_claimed_by_one_process_until_it_ends(tmp_path, capsys, monkeypatch):
+    """A CSV a tool will write is held from its checks to its end: a second process naming the same
+    file is refused in one line naming the holder, before any work (two probes once both passed the
+    checks and the later overwrote the other's rows); once the holder ends, the file is free."""
+    out = tmp_path / "probe.csv"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from experiments import run_folders; "
+         f"run_folders.claim_output_file({str(out)!r}, '.csv', '--out', False); print('held', flush=True); "
+         "time.sleep(120)"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(run_folders.UsageError, match=f"is being written by .*pid {holder.pid}"):
+            run_folders.claim_output_file(out, ".csv", "--out", True)
+        from experiments import flattery_curve
+
+        def worked(*a, **k):
+            raise AssertionError("worked before the output was claimed")
+        monkeypatch.setattr(flattery_curve, "phase_rows", worked)
+        with pytest.raises(SystemExit) as exit_:
+            flattery_curve.main(["--seeds", "0", "--out", str(out)])
+        assert exit_.value.code == 2 and f"pid {holder.pid}" in capsys.readouterr().err
+    finally:
+        holder.kill()
+        holder.wait()
+    run_folders.claim_output_file(out, ".csv", "--out", False)      # let go with its process: free
+    run_folders.claim_output_file(out, ".csv", "--out", False)      # and this process may ask again
+    assert not out.exists()
