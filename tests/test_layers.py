@@ -117,3 +117,14 @@ def test_the_check_fails_on_a_stage_file_that_imports_a_tool(tmp_path, stage, li
     assert upward_imports(graph), stage
     if stage.startswith("experiments"):
         assert circles(graph)
+
+
+def test_every_mutation_of_the_table_still_finds_its_one_line():
+    """tools/mutations.py breaks a line by text: an edit elsewhere that repeats the text, or one that
+    changes it, leaves the mutation 'NOT APPLIED' and its test unchecked until the next full run.
+    This reads the files only, so it fails at once (a comment quoting `LEVEL = 0.95` once did it)."""
+    from tools.mutations import MUTATIONS
+    for what, file, old, _new, test in MUTATIONS:
+        count = (ROOT / file).read_text().count(old)
+        assert count == 1, f"{what!r}: its line occurs {count} times in {file}"
+        assert (ROOT / test.split("::")[0]).is_file(), test

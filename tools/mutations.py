@@ -84,7 +84,7 @@ MUTATIONS = [
      "max_penetration_cm={result['max_penetration_cm']:.2f}", "max_penetration_cm={result['max_joint_gap_cm']:.2f}",
      "tests/test_sim2d.py::test_check_physics_command_line_ends_with_one_summary_line"),
     ("statistics: an 80 % interval instead of 95 %", "experiments/stats.py",
-     "LEVEL = 0.95", "LEVEL = 0.80",
+     "\nLEVEL = 0.95", "\nLEVEL = 0.80",
      "tests/test_sweeps.py::test_bootstrap_intervals_of_hand_computed_cases"),
     ("statistics: ties count as wins in P(X > Y)", "experiments/stats.py",
      "p = ((x > y) + 0.5 * (x == y))", "p = ((x >= y) + 0.0 * (x == y))",
