@@ -323,8 +323,12 @@ def claim_output_file(path, suffix: str, flag: str, force: bool) -> None:
         raise UsageError(f"{flag} {path}: cannot write in {path.parent} ({e.strerror or type(e).__name__})")
     key = str(path.resolve())
     if key not in _claimed:
-        OUTPUT_LOCKS.mkdir(exist_ok=True)
-        lock = open(OUTPUT_LOCKS / (hashlib.sha1(key.encode()).hexdigest()[:20] + ".lock"), "a+")
+        try:
+            OUTPUT_LOCKS.mkdir(exist_ok=True)
+            lock = open(OUTPUT_LOCKS / (hashlib.sha1(key.encode()).hexdigest()[:20] + ".lock"), "a+")
+        except OSError as e:
+            raise UsageError(f"{flag} {path}: cannot hold it, no lock in {OUTPUT_LOCKS} "
+                             f"({e.strerror or type(e).__name__}): set TMPDIR to a folder you can write")
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:

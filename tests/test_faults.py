@@ -252,3 +252,10 @@ def test_an_output_file_is_claimed_by_one_process_until_it_ends(tmp_path, capsys
     run_folders.claim_output_file(out, ".csv", "--out", False)      # let go with its process: free
     run_folders.claim_output_file(out, ".csv", "--out", False)      # and this process may ask again
     assert not out.exists()
+
+
+def test_an_output_file_whose_lock_cannot_be_made_is_one_line(tmp_path, monkeypatch):
+    (tmp_path / "locks").write_text("a file where the lock folder would be")
+    monkeypatch.setattr(run_folders, "OUTPUT_LOCKS", tmp_path / "locks" / "sub")
+    with pytest.raises(run_folders.UsageError, match="cannot hold it, no lock in .*set TMPDIR"):
+        run_folders.claim_output_file(tmp_path / "out.csv", ".csv", "--out", False)
