@@ -232,6 +232,21 @@ def save_rollouts(out: Path, run) -> None:
 LOCK = ".lock"          # in a run folder: locked (fcntl.flock) by the one process writing it
 
 
+def hold(lock, what, holder: str, elsewhere: str) -> None:
+    """Take the exclusive flock on the open file `lock` without waiting and write "holder (pid N)"
+    into it; if another process has it, close `lock` and raise a UsageError naming that process."""
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        lock.seek(0)
+        other = lock.read().strip() or "another process"
+        lock.close()
+        raise UsageError(f"{what} is being written by {other}: wait for it to end, or {elsewhere}")
+    lock.truncate(0)
+    lock.write(f"{holder} (pid {os.getpid()})\n")
+    lock.flush()
+
+
 def claim_run_dir(out: Path):
     """Hold the run folder `out` (made if missing) for this process alone: an exclusive lock on
     out/.lock, taken atomically and let go when the file is closed or the process ends, however it
@@ -251,16 +266,7 @@ def claim_run_dir(out: Path):
         raise UsageError(f"cannot write the run directory {out} ({e.strerror or type(e).__name__}): "
                          "name a directory you can write with --out")
     try:
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.seek(0)
-            holder = lock.read().strip() or "another process"
-            lock.close()
-            raise UsageError(f"{out} is being written by {holder}: wait for it to end, or name another --out")
-        lock.truncate(0)
-        lock.write(f"train.py (pid {os.getpid()})\n")
-        lock.flush()
+        hold(lock, out, "train.py", "name another --out")
     except BaseException:                 # a signal (or a full disk) while claiming: no folder made here is left
         if created and not lock.closed:   # ... unless another process holds it by now
             try:
@@ -329,16 +335,7 @@ def claim_output_file(path, suffix: str, flag: str, force: bool) -> None:
         except OSError as e:
             raise UsageError(f"{flag} {path}: cannot hold it, no lock in {OUTPUT_LOCKS} "
                              f"({e.strerror or type(e).__name__}): set TMPDIR to a folder you can write")
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.seek(0)
-            holder = lock.read().strip() or "another process"
-            lock.close()
-            raise UsageError(f"{path} is being written by {holder}: wait for it to end, or name another file")
-        lock.truncate(0)
-        lock.write(f"{Path(sys.argv[0]).name} (pid {os.getpid()})\n")
-        lock.flush()
+        hold(lock, path, Path(sys.argv[0]).name, "name another file")
         _claimed[key] = lock
     if path.exists() and not force:          # read under the lock: a holder that just finished wrote it
         raise UsageError(f"{path} already exists: use --force to replace it, or name another file")

@@ -159,8 +159,8 @@ MUTATIONS = [
      "(per_run >= GOOD_RATIO).mean()", "(per_run > GOOD_RATIO).mean()",
      "tests/test_transfer.py::test_group_table_averages_seeds_marks_seen_and_uses_only_held_out_designs"),
     ("run folder: no lock, a second writer is let in", "experiments/run_folders.py",
-     "    try:\n        try:\n            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)\n",
-     "    try:\n        try:\n            pass\n",
+     "        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)\n    except OSError:\n        lock.seek(0)\n",
+     "        pass\n    except OSError:\n        lock.seek(0)\n",
      "tests/test_faults.py::test_a_held_folder_refuses_a_second_writer_in_one_line"),
     ("SIGTERM kills a run without a word", "train.py",
      "        signal.signal(signal.SIGTERM, on_signal)", "        pass",
@@ -189,12 +189,8 @@ MUTATIONS = [
      "if cfg.random_waves:", "if False:",
      "tests/test_rlil.py::test_line2_draws_waves_with_random_waves_on_and_the_papers_splines_off"),
     ("an output file: no lock, a second process writes it too", "experiments/run_folders.py",
-     "        try:\n            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)\n        except OSError:\n            lock.seek(0)\n"
-     "            holder = lock.read().strip() or \"another process\"\n            lock.close()\n"
-     "            raise UsageError(f\"{path} is being written",
-     "        try:\n            pass\n        except OSError:\n            lock.seek(0)\n"
-     "            holder = lock.read().strip() or \"another process\"\n            lock.close()\n"
-     "            raise UsageError(f\"{path} is being written",
+     "        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)\n    except OSError:\n        lock.seek(0)\n",
+     "        pass\n    except OSError:\n        lock.seek(0)\n",
      "tests/test_faults.py::test_an_output_file_is_claimed_by_one_process_until_it_ends"),
 ]
 
