@@ -7,7 +7,7 @@ directory, the one line is changed there (never here), and only that test is
 run.  The table it prints (and writes to results/mutations.md, which
 docs/cli.md shows) says whether every test went red.
 
-    python tools/mutations.py            # all 49, about 9 minutes on 2 cores busy with two training runs
+    python tools/mutations.py            # every entry, one pytest run each
     python tools/mutations.py --only 3   # one entry, by number
 """
 from __future__ import annotations
