@@ -634,6 +634,52 @@ def takeoff_aligned_table(runs: list, steps=(0, 3, 6, 9), walking_m: float = 10.
     return "\n".join(lines) + "\n" if len(lines) > 2 else ""
 
 
+def early_takeoff_table(candidate: Path, baseline: Path, name: str = "hexapod-rl", iters: int = 8,
+                        seeds=(0, 1, 2, 3), above_m: float = 1.0, walking_m: float = 10.0, walking_seeds: int = 3) -> str:
+    """Markdown of a short screen of the take-off (issue #34, part 31): the candidate's runs
+    (`candidate`/<name>-seed*/, `iters` iterations) against the baseline's on the same seeds
+    (`baseline`, its first `iters` iterations). Per seed: the area under the curve over iterations
+    1-iters, the first iteration at `walking_m`, the distance at `iters`, the flattery at iteration 1,
+    the share of new policies kept (iterations 2-iters) and the run's minutes. The rule, fixed before
+    the runs: the candidate passes if over `seeds` its mean area is at least `above_m` above the
+    baseline's and at least `walking_seeds` of them are at `walking_m` at iteration `iters`; with
+    fewer finished seeds, "not decided".  "" when no seed has finished."""
+    own, base = seed_runs(candidate, name, finished=iters), seed_runs(baseline, name, finished=iters)
+    done = [s for s in seeds if s in own and s in base]
+    if not done:
+        return ""
+
+    def cells(rows):
+        curve = run_curve(rows)
+        first = next((i for i in range(iters + 1) if curve[i] >= walking_m), None)
+        kept = np.mean([rows[i]["kept_new"] for i in range(2, iters + 1)])
+        return (area_under_curve(curve, iters), "-" if first is None else str(first), curve[iters],
+                rows[1]["model_progress_m"] - rows[1]["sim_progress_m"], kept,
+                sum(r["seconds"] for r in rows[:iters + 1]) / 60)
+
+    lines = [f"| seed | area 1-{iters} (m): candidate, baseline | first at {walking_m:g} m | at {iters} (m) "
+             "| flattery at 1 (m) | new policies kept | minutes a run |", "|---|---|---|---|---|---|---|"]
+    areas, at_end = [], []
+    for s in done:
+        c, b = cells(own[s]), cells(base[s])
+        areas.append((c[0], b[0]))
+        at_end.append((c[2], b[2]))
+        lines.append(f"| {s} | {c[0]:.2f}, {b[0]:.2f} | {c[1]}, {b[1]} | {c[2]:.2f}, {b[2]:.2f} | {c[3]:+.2f}, {b[3]:+.2f} "
+                     f"| {c[4]:.0%}, {b[4]:.0%} | {c[5]:.0f}, {b[5]:.0f} |")
+    a, b = np.array(areas).T
+    walking = [sum(x >= walking_m for x in col) for col in np.array(at_end).T]
+    if len(done) < len(seeds):
+        decided = f"not decided ({len(done)} of {len(seeds)} seeds)"
+    else:
+        passes = a.mean() >= b.mean() + above_m and walking[0] >= walking_seeds
+        decided = ("passes" if passes else "does not pass") + (
+            f" (needs the area {above_m:g} m above the baseline's and {walking_seeds} of {len(seeds)} seeds "
+            f"at {walking_m:g} m at {iters})")
+    lines.append(f"| mean of {len(done)} | {a.mean():.2f}, {b.mean():.2f} ({a.mean() - b.mean():+.2f}) | | "
+                 f"{walking[0]} and {walking[1]} of {len(done)} at {walking_m:g} m | | | |")
+    return "\n".join(lines) + f"\n\nVerdict by part 31's rule: **{decided}**.\n"
+
+
 PANEL_C_VARIANTS = {     # plain RL on leg_leg_wheel, 5 iterations (issue #34, part 9): variant: (what differs, runs)
     "defaults": ("none: Figure 3's committed runs", ("figure3_runs", "leg_leg_wheel-rl")),
     "data16": ("16x the data: 512 random, 256 + 256 policy episodes", ("walk_ablation_runs/data16_c", "leg_leg_wheel-rl")),
@@ -1035,6 +1081,11 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                 ("RL, T = 40 (part 28)", results / "panel_a_candidates" / "walk_t40", "hexapod-rl")])
             if table:
                 tables[results / "walk_takeoff.md"] = table
+    if (results / "panel_a_candidates" / "walk_ens4").is_dir():   # part 31: four models, 8 iterations
+        with made_from(results / "panel_a_candidates" / "walk_ens4"):
+            table = early_takeoff_table(results / "panel_a_candidates" / "walk_ens4", results / "figure3_walk_k480b16_runs")
+            if table:
+                tables[results / "plain_rl_panel_a_ens4.md"] = table
     if (results / "walk_il0_runs").is_dir():             # part 27: lambda = 0 after line 1, against RL+IL
         with made_from(results / "walk_il0_runs"):
             table = il0_table(results / "walk_il0_runs", results / "figure3_walk_k480b16_runs")

@@ -380,6 +380,31 @@ def test_the_takeoff_table_reads_each_seed_from_its_first_iteration_at_10_m(tmp_
     assert tables.takeoff_aligned_table([("none", tmp_path, "hexapod-hexapod")]) == ""
 
 
+def test_the_early_takeoff_table_reads_part_31s_rule_over_four_seeds(tmp_path):
+    """tables.early_takeoff_table (issue #34, part 31) on made-up 8-iteration runs: the baseline walks
+    1 m per iteration (area 4.5 m, 10 m never by 8); a candidate 2 m (area 9, 10 m at iteration 5) on
+    all four seeds passes, one that walks on two seeds only does not, and three finished seeds are
+    not decided."""
+    def run(folder, seed, per_iteration, iters=8):
+        rows = [{"iteration": i, "distance_m": per_iteration * i, "kept_new": i % 2 == 0, "seconds": 60.0,
+                 "model_progress_m": 1.5, "sim_progress_m": 0.5} for i in range(iters + 1)]
+        write_run(tmp_path / folder / f"hexapod-rl-seed{seed}", rows)
+    for seed in range(4):
+        run("base", seed, 1.0, iters=15)
+        run("fast", seed, 2.0)
+        run("half", seed, 2.0 if seed < 2 else 1.0)
+        if seed < 3:
+            run("short", seed, 2.0)
+    run("short", 3, 2.0, iters=5)                                          # unfinished: left out
+    table = tables.early_takeoff_table(tmp_path / "fast", tmp_path / "base").splitlines()
+    assert table[2] == "| 0 | 9.00, 4.50 | 5, - | 16.00, 8.00 | +1.00, +1.00 | 57%, 57% | 9, 9 |"
+    assert table[6] == "| mean of 4 | 9.00, 4.50 (+4.50) | | 4 and 0 of 4 at 10 m | | | |"
+    assert "**passes (" in table[-1]
+    assert "**does not pass (" in tables.early_takeoff_table(tmp_path / "half", tmp_path / "base")
+    assert "**not decided (3 of 4 seeds)**" in tables.early_takeoff_table(tmp_path / "short", tmp_path / "base")
+    assert tables.early_takeoff_table(tmp_path / "none", tmp_path / "base") == ""
+
+
 def test_the_plain_rl_targets_table_reads_flattery_kept_policies_and_falls(tmp_path):
     """tables.plain_rl_targets_table on made-up 15-iteration runs: seed 0 is flattered by 1 m at
     iteration 1 and 0.2 m after, keeps every second new policy and falls 4 m from iteration 14 to 15;
