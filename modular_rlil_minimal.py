@@ -25,8 +25,7 @@ first model also sees the clone's roll-outs (`--clone-data`,
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
 Algorithm 1.  One more, off by default and on in `--preset walk`: `--random-waves`
-(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Under screen, off by default:
-`--ensemble E` (E models, each policy roll-out on one of them, `ModelEnsemble`).  Mechanisms that
+(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Mechanisms that
 were measured and did not help are not in the code; docs/history/ has their results.
 
 The command line is train.py:
@@ -100,10 +99,6 @@ class Config:
     """transitions per design per model step; 128-2048"""
     model_lr: float = 1e-3
     """model learning rate; 1e-4 to 3e-3"""
-    ensemble: int = 1
-    """models fitted side by side on T_train, each from its own initial weights and mini-batches; with
-    more than 1 the policy phase runs row b of every batch on model b mod ensemble for its whole
-    roll-out (`ModelEnsemble`, not in the paper); 1 = the paper; 1-4"""
     # Lines 7-26: policy optimisation
     policy_steps: int = 120
     """K, policy gradient steps per iteration; 50-1000"""
@@ -358,8 +353,6 @@ def train_model(model: ModularModel, data: dict[str, Trajectories], cfg: Config,
     per training design.  Returns the mean loss (normalised MSE) over the last
     10 % of the steps (NaN if no steps).
     """
-    if isinstance(model, ModelEnsemble):                                    # not in the paper: each member alike
-        return float(np.mean([train_model(m, data, cfg, rng, first) for m in model.members]))
     flat = {d: traj.transitions() for d, traj in data.items()}             # (E*T, S), (E*T, A), (E*T, S)
     if first:
         model.fit_normalization([(sim2d.design_graph(d), *f) for d, f in flat.items()])
@@ -677,7 +670,7 @@ class Run:
 
     cfg: Config
     policy: ModularPolicy
-    model: ModularModel              # f~_phi (a ModelEnsemble with `ensemble` > 1)
+    model: ModularModel              # f~_phi
     data: dict                       # T_train: design code -> Trajectories
     il_weight: float                 # lambda for the next iteration
     rng: np.random.Generator
@@ -752,7 +745,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
     if run is None:
         t0 = time.perf_counter()
         rng = seed_everything(cfg.seed)
-        policy, model = ModularPolicy(cfg.gnn), new_model(cfg)
+        policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
         if demo_data and cfg.bc_steps:                                                             # line 1
             log(f"line 1   behavioural cloning on {', '.join(demo_data)}: IL loss "
                 f"{pretrain_bc(policy, demo_data, cfg, rng):.3f}")
@@ -804,38 +797,8 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 # ----------------------------------------------------------------------------
 # Not in the paper: switches against model error (docs/results.md): clone_data and
-# keep_better, both on by default; ensemble, off (1) by default
+# keep_better, both on by default
 # ----------------------------------------------------------------------------
-def new_model(cfg: Config):
-    """f~_phi before line 5: one ModularModel, or `cfg.ensemble` of them as a ModelEnsemble."""
-    if cfg.ensemble == 1:
-        return ModularModel(cfg.gnn)
-    return ModelEnsemble([ModularModel(cfg.gnn) for _ in range(cfg.ensemble)])
-
-
-class ModelEnsemble(torch.nn.Module):
-    """Models as one: f(s, a) runs row b of the batch on member b mod E, so each of the policy
-    phase's roll-outs (a row from line 9 to line 15) stays on one member for its whole length
-    (PETS' "TS-infinity", Chua et al. 2018; ME-TRPO's ensemble, Kurutach et al. 2018).  The
-    members agree where T_train has data and disagree where it has none, so a gait that only one
-    member believes in gains on 1/E of the roll-outs and one they all agree on gains on every one.
-    `train_model` fits each member alike (line 5)."""
-
-    def __init__(self, members):
-        super().__init__()
-        self.members = torch.nn.ModuleList(members)
-
-    def on_design(self, graph):
-        fs = [m.on_design(graph) for m in self.members]
-
-        def f(s, a):
-            n, e = len(s), len(fs)
-            order = torch.cat([torch.arange(j, n, e) for j in range(e)])          # rows as the members take them
-            out = torch.cat([fj(s[j::e], a[j::e]) for j, fj in enumerate(fs)])
-            return out[torch.argsort(order)]
-        return f
-
-
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""
     return cfg.clone_data and bool(cfg.demos) and cfg.bc_steps > 0

@@ -21,7 +21,7 @@ distribution p(s) (`sim2d.sample_initial_states`), all or half of them; and (par
 that already walks) the noise of L_RL's model roll-outs: none (the mean action, as the
 evaluation runs it) or a lower floor under the policy's log-std for the phase; (part 25) a higher
 floor; (part 29, a policy that has not taken off at the walk) four times the walk's steps; (part 30)
-the phase on an ensemble of four models (`rlil.ModelEnsemble`).
+the phase on an ensemble of four models (`Ensemble`).
 
     python experiments/phase_probe.py --preset walk --seeds 1 4 5 7 --after 7 --variants own det floor25 T40 lr3e-4 K120_B16
 """
@@ -74,13 +74,39 @@ VARIANTS = {
     # part 29: a policy that has not taken off at the walk
     "K1920_B16": ({"policy_steps": 1920, "batch": 16}, 0.0),   # four times the walk's phase
     # part 30: the phase on an ensemble of models
-    "ens4": ({}, 0.0),                  # the run's model and 3 more fitted afresh on T_train (`rlil.ModelEnsemble`)
+    "ens4": ({}, 0.0),                  # the run's model and 3 more fitted afresh on T_train (`Ensemble`)
 }
 NOISE = {"det": "mean", "floor25": -2.5, "floor05": -0.5}   # the variants that change L_RL's noise (`phase_noise`)
 ENSEMBLES = {"ens4": 4}             # the variants that optimise on an ensemble of this many models
 
 
-def ensemble_at(model, traj, cfg: rlil.Config, size: int) -> rlil.ModelEnsemble:
+class Ensemble:
+    """Models as one: f(s, a) runs row b of the batch on member b mod E, so each of the phase's
+    roll-outs (a row from line 9 to 15) stays on one member for its whole length (PETS'
+    "TS-infinity", Chua et al. 2018; ME-TRPO's ensemble, Kurutach et al. 2018). A gait that only
+    one member believes in gains on 1/E of the roll-outs; one that every member agrees on gains
+    on all of them."""
+
+    def __init__(self, members):
+        self.members = list(members)
+
+    def requires_grad_(self, flag: bool = True) -> "Ensemble":
+        for m in self.members:
+            m.requires_grad_(flag)
+        return self
+
+    def on_design(self, graph):
+        fs = [m.on_design(graph) for m in self.members]
+
+        def f(s, a):
+            n, e = len(s), len(fs)
+            order = torch.cat([torch.arange(j, n, e) for j in range(e)])          # rows as the members take them
+            out = torch.cat([fj(s[j::e], a[j::e]) for j, fj in enumerate(fs)])
+            return out[torch.argsort(order)]
+        return f
+
+
+def ensemble_at(model, traj, cfg: rlil.Config, size: int) -> Ensemble:
     """`model` and size - 1 more, each fitted afresh on T_train as line 5 fits the first model
     (`model_steps`, its own initial weights and mini-batches)."""
     members = [model]
@@ -89,7 +115,7 @@ def ensemble_at(model, traj, cfg: rlil.Config, size: int) -> rlil.ModelEnsemble:
         m = rlil.ModularModel(cfg.gnn)
         rlil.train_model(m, {traj.design: traj}, cfg, np.random.default_rng(2000 + j), first=True)
         members.append(m)
-    return rlil.ModelEnsemble(members)
+    return Ensemble(members)
 
 
 @contextlib.contextmanager

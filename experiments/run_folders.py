@@ -28,7 +28,7 @@ import torch
 import modular_rlil_minimal as rlil
 import ppo_minimal as ppo_lib
 import sim2d
-from gnn import GNNConfig, ModularPolicy
+from gnn import GNNConfig, ModularModel, ModularPolicy
 from sim2d import atomic_write
 
 OUTPUTS = ("metrics.json", "metrics.csv", "curve.png", "policy.pt", "checkpoint.pt", "rollout.gif")
@@ -82,7 +82,7 @@ def config_to_dict(cfg) -> dict:
 # docs/history/2026-12-plain-rl-diagnosis.md for recent_data and improvement_tries,
 # docs/history/2026-12-class-run-budgets.md for bc_lr) and the value at which the
 # code they switched on did nothing: a run written with that value is today's algorithm.
-REMOVED_AT_OFF = {"held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
+REMOVED_AT_OFF = {"ensemble": 1, "held_out_models": 0, "trust_region": 0.0, "gnn.contact_features": False,
                   "critic": False, "random_knots": 10, "recent_data": 0.0,
                   "random_wave_share": 1.0, "wheel_splines": False, "random_wave_offset": 0.0,
                   "bc_lr": 1e-3, "improvement_tries": 1}
@@ -209,7 +209,7 @@ def restore_run(ckpt: dict, cfg, path: Path):
         run.return_scale = ppo_lib.ReturnScale(**ckpt["return_scale"])
         run.rng = rlil.Run.restore_rngs(ckpt["rng"])
         return run
-    policy, model = ModularPolicy(cfg.gnn), rlil.new_model(cfg)
+    policy, model = ModularPolicy(cfg.gnn), ModularModel(cfg.gnn)
     policy.load_state_dict(ckpt["policy"])
     model.load_state_dict(ckpt["model"])
     data = {d: rlil.Trajectories(d, v["states"], v["actions"]) for d, v in ckpt["data"].items()}

@@ -658,7 +658,7 @@ def early_takeoff_table(candidate: Path, baseline: Path, name: str = "hexapod-rl
                 sum(r["seconds"] for r in rows[:iters + 1]) / 60)
 
     lines = [f"| seed | area 1-{iters} (m): candidate, baseline | first at {walking_m:g} m | at {iters} (m) "
-             "| flattery at 1 (m) | new policies kept | minutes a run |", "|---|---|---|---|---|---|---|"]
+             "| flattery at 1 (m) | new policies kept | minutes a run (each on its machine) |", "|---|---|---|---|---|---|---|"]
     areas, at_end = [], []
     for s in done:
         c, b = cells(own[s]), cells(base[s])

@@ -123,7 +123,7 @@ def test_the_phase_probe_starts_where_the_run_is_and_runs_a_phase():
 
 
 def test_the_ensemble_runs_each_row_on_one_member_and_the_probe_phases_on_it():
-    """`rlil.ModelEnsemble` (part 30): row b of a batch goes through member b mod E, with the gradient, and
+    """`Ensemble` (part 30): row b of a batch goes through member b mod E, with the gradient, and
     `probe_rows` fits the extra members and runs the phase on all of them (the ensemble's phase
     differs from the single model's, from the same start and draws)."""
     from experiments import phase_probe as pp
