@@ -25,7 +25,8 @@ first model also sees the clone's roll-outs (`--clone-data`,
 when the new one does worse in the simulator (`--keep-better`,
 `improvement_check`).  `--clone-data off --keep-better off` is the paper's
 Algorithm 1.  One more, off by default and on in `--preset walk`: `--random-waves`
-(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Mechanisms that
+(line 2's actions as sine waves, `sim2d.random_wave_actions`).  Under screen, off by default:
+`--phase-tries P` (P policy phases an iteration, the best in the simulator kept, `best_of_phases`).  Mechanisms that
 were measured and did not help are not in the code; docs/history/ has their results.
 
 The command line is train.py:
@@ -144,6 +145,10 @@ class Config:
     than the kept one's, minus improvement_margin; off = the paper"""
     improvement_margin: float = 0.0
     """with keep_better: return (about metres per episode) a new policy may lose and still be kept; 0-2"""
+    phase_tries: int = 1
+    """policy phases (lines 7-26) per iteration, each from the same policy with its own draws; the try
+    whose noiseless line-28 roll-outs return most in the simulator is kept, and only its roll-outs join
+    T_train (`best_of_phases`, not in the paper); 1 = the paper; 1-4"""
     random_waves: bool = False
     """line 2's random actions are sine waves (sim2d.random_wave_actions: one random period per
     episode, a random amplitude and phase per joint) instead of splines, so the joints swing instead
@@ -638,7 +643,7 @@ def sim_steps(cfg: Config, i: int) -> int:
     random = len(cfg.train) * cfg.random_episodes * cfg.episode_steps
     policy = len(cfg.train) * 2 * cfg.policy_episodes * cfg.episode_steps          # one collection
     clone = policy if uses_clone_data(cfg) else 0                                    # not in the paper
-    return demos + random + clone + i * policy
+    return demos + random + clone + i * cfg.phase_tries * policy                    # every try's collection
 
 
 def eval_seed(cfg: Config) -> int:
@@ -771,9 +776,12 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
         # -- lines 4-5: model learning phase --
         fit_loss = train_model(model, data, cfg, rng, first=(i == 1))                              # line 5
         # -- lines 6-26: policy optimisation phase --
-        phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)               # lines 7-26
-        # -- lines 27-29: data collection --
-        new_data = add_policy_rollouts(policy, data, cfg, rng)                                     # lines 28-29
+        if cfg.phase_tries > 1:                                                                    # not in the paper
+            phase, new_data = best_of_phases(policy, model, data, demo_data, il_weight, cfg, rng)  # lines 7-29, tried
+        else:
+            phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)           # lines 7-26
+            # -- lines 27-29: data collection --
+            new_data = add_policy_rollouts(policy, data, cfg, rng)                                 # lines 28-29
         if cfg.keep_better:                                                                        # not in the paper
             phase.update(improvement_check(policy, previous, new_data, run, cfg))
         run.il_weight = decay_il_weight(il_weight, cfg)                                            # line 30
@@ -797,7 +805,7 @@ def algorithm1(cfg: Config, demo_data: dict, run: Run | None = None, log=print, 
 
 # ----------------------------------------------------------------------------
 # Not in the paper: switches against model error (docs/results.md): clone_data and
-# keep_better, both on by default
+# keep_better, both on by default; phase_tries, off (1) by default
 # ----------------------------------------------------------------------------
 def uses_clone_data(cfg: Config) -> bool:
     """`clone_data` acts only where line 1 made a clone to run."""
@@ -840,3 +848,23 @@ def improvement_check(policy: ModularPolicy, previous: dict, new_data: dict[str,
         policy.load_state_dict(previous)
     return {"policy_return": value, "kept_new": keep}
 
+
+def best_of_phases(policy: ModularPolicy, model, data: dict[str, Trajectories], demo_data: dict,
+                   il_weight: float, cfg: Config, rng: np.random.Generator) -> tuple[dict, dict]:
+    """Lines 7-29 with `phase_tries` tries: each try runs the policy phase from the same policy with
+    its own draws, on the same T_train, and collects line 28's roll-outs in the simulator; the try
+    whose noiseless roll-outs return most (`policy_return`) is kept, and only its roll-outs join
+    T_train (line 29).  Before take-off a phase is a lottery (docs/history/2026-12-plain-rl-diagnosis.md,
+    parts 29-31); tries buy more tickets per iteration, paid in phases and simulator steps.  Returns
+    the kept try's phase metrics, with every try's return, and its new data."""
+    start, tries = copy.deepcopy(policy.state_dict()), []
+    for _ in range(cfg.phase_tries):
+        policy.load_state_dict(start)
+        phase = optimize_policy(policy, model, data, demo_data, il_weight, cfg, rng)          # lines 7-26
+        new_data = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in data}             # line 28
+        tries.append((policy_return(new_data, cfg), copy.deepcopy(policy.state_dict()), phase, new_data))
+    _, state, phase, new_data = max(tries, key=lambda t: t[0])                                 # the first of equals
+    policy.load_state_dict(state)
+    for design, traj in new_data.items():
+        data[design] = data[design] + traj                                                      # line 29
+    return {**phase, "try_returns": [t[0] for t in tries]}, new_data

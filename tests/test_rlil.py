@@ -622,6 +622,31 @@ def test_improvement_check_keeps_the_previous_policy_when_the_new_one_returns_le
         assert run.kept_return == (value if expect_keep else kept)
 
 
+def test_phase_tries_keep_the_try_that_returns_most_and_add_only_its_rollouts(monkeypatch):
+    """--phase-tries 3 inside Algorithm 1: each try starts from the same policy (a phase here adds
+    its try's number to every parameter), the one whose noiseless roll-outs return most is kept
+    (scripted returns 1, 5, 2: the second), only its roll-outs join T_train, and sim_steps counts
+    every try's collection.  Fails if the best try is not the one kept, if a try starts from the
+    previous try's policy, or if every try's data is added."""
+    returns, calls = iter([1.0, 5.0, 2.0]), []
+
+    def phase(policy, *args):
+        calls.append(1)
+        with torch.no_grad():
+            for p in policy.parameters():
+                p.add_(float(len(calls)))
+        return {"rl_loss": 0.0, "il_loss": None, "validation_reward": 0.0, "reverts": 0, "lr": 1e-3}
+    monkeypatch.setattr(rlil, "optimize_policy", phase)
+    monkeypatch.setattr(rlil, "policy_return", lambda new_data, cfg: next(returns))
+    cfg = smoke(train=("car",), iters=1, policy_episodes=2, phase_tries=3, keep_better=False)
+    start = []
+    run = rlil.algorithm1(cfg, {}, log=quiet, on_iteration=lambda r: start.append(copy.deepcopy(r.policy.state_dict())))
+    assert all(torch.allclose(start[1][k], start[0][k] + 2.0) for k in start[0] if start[0][k].is_floating_point())
+    assert run.metrics[1]["try_returns"] == [1.0, 5.0, 2.0]
+    assert len(run.data["wnwwnw"].actions) == cfg.random_episodes + 2 * cfg.policy_episodes
+    assert run.metrics[1]["sim_steps"] - run.metrics[0]["sim_steps"] == 3 * 2 * cfg.policy_episodes * cfg.episode_steps
+
+
 def test_algorithm1_with_keep_better_continues_from_the_kept_policy(tmp_path, monkeypatch):
     """Inside Algorithm 1: an iteration whose policy returns less ends with the policy it started
     from (its data still added to T_train), the next phase starts there, and a checkpoint keeps
