@@ -1081,11 +1081,12 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                 ("RL, T = 40 (part 28)", results / "panel_a_candidates" / "walk_t40", "hexapod-rl")])
             if table:
                 tables[results / "walk_takeoff.md"] = table
-    if (results / "panel_a_candidates" / "walk_ens4").is_dir():   # part 31: four models, 8 iterations
-        with made_from(results / "panel_a_candidates" / "walk_ens4"):
-            table = early_takeoff_table(results / "panel_a_candidates" / "walk_ens4", results / "figure3_walk_k480b16_runs")
-            if table:
-                tables[results / "plain_rl_panel_a_ens4.md"] = table
+    for variant, name in (("walk_ens4", "ens4"), ("walk_tries_p3", "tries_p3")):   # parts 31-32: 8 iterations
+        if (results / "panel_a_candidates" / variant).is_dir():
+            with made_from(results / "panel_a_candidates" / variant):
+                table = early_takeoff_table(results / "panel_a_candidates" / variant, results / "figure3_walk_k480b16_runs")
+                if table:
+                    tables[results / f"plain_rl_panel_a_{name}.md"] = table
     if (results / "walk_il0_runs").is_dir():             # part 27: lambda = 0 after line 1, against RL+IL
         with made_from(results / "walk_il0_runs"):
             table = il0_table(results / "walk_il0_runs", results / "figure3_walk_k480b16_runs")
