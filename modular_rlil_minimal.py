@@ -331,7 +331,11 @@ def collect_policy_rollouts(policy: ModularPolicy, design: str, cfg: Config,
 def add_policy_rollouts(policy: ModularPolicy, data: dict[str, Trajectories], cfg: Config,
                         rng: np.random.Generator) -> dict[str, Trajectories]:
     """Algorithm 1 lines 28-29: T_train <- T_train U T_new for every training design; returns T_new."""
-    new_data = {d: collect_policy_rollouts(policy, d, cfg, rng) for d in data}     # line 28
+    return join_rollouts(data, {d: collect_policy_rollouts(policy, d, cfg, rng) for d in data})   # line 28
+
+
+def join_rollouts(data: dict[str, Trajectories], new_data: dict[str, Trajectories]) -> dict[str, Trajectories]:
+    """Algorithm 1 line 29: T_train <- T_train U T_new, design by design; returns T_new."""
     for design, traj in new_data.items():
         data[design] = data[design] + traj                                         # line 29
     return new_data
@@ -865,6 +869,4 @@ def best_of_phases(policy: ModularPolicy, model, data: dict[str, Trajectories], 
         tries.append((policy_return(new_data, cfg), copy.deepcopy(policy.state_dict()), phase, new_data))
     _, state, phase, new_data = max(tries, key=lambda t: t[0])                                 # the first of equals
     policy.load_state_dict(state)
-    for design, traj in new_data.items():
-        data[design] = data[design] + traj                                                      # line 29
-    return {**phase, "try_returns": [t[0] for t in tries]}, new_data
+    return {**phase, "try_returns": [t[0] for t in tries]}, join_rollouts(data, new_data)     # line 29

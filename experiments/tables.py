@@ -649,25 +649,23 @@ def early_takeoff_table(candidate: Path, baseline: Path, name: str = "hexapod-rl
     if not done:
         return ""
 
-    def cells(rows):
+    def cells(rows) -> dict:
         curve = run_curve(rows)
         first = next((i for i in range(iters + 1) if curve[i] >= walking_m), None)
-        kept = np.mean([rows[i]["kept_new"] for i in range(2, iters + 1)])
-        return (area_under_curve(curve, iters), "-" if first is None else str(first), curve[iters],
-                rows[1]["model_progress_m"] - rows[1]["sim_progress_m"], kept,
-                sum(r["seconds"] for r in rows[:iters + 1]) / 60)
+        return {"area": area_under_curve(curve, iters), "first": "-" if first is None else str(first),
+                "end": curve[iters], "flattery": rows[1]["model_progress_m"] - rows[1]["sim_progress_m"],
+                "kept": np.mean([rows[i]["kept_new"] for i in range(2, iters + 1)]),
+                "minutes": sum(r["seconds"] for r in rows[:iters + 1]) / 60}
 
     lines = [f"| seed | area 1-{iters} (m): candidate, baseline | first at {walking_m:g} m | at {iters} (m) "
              "| flattery at 1 (m) | new policies kept | minutes a run (each on its machine) |", "|---|---|---|---|---|---|---|"]
-    areas, at_end = [], []
-    for s in done:
-        c, b = cells(own[s]), cells(base[s])
-        areas.append((c[0], b[0]))
-        at_end.append((c[2], b[2]))
-        lines.append(f"| {s} | {c[0]:.2f}, {b[0]:.2f} | {c[1]}, {b[1]} | {c[2]:.2f}, {b[2]:.2f} | {c[3]:+.2f}, {b[3]:+.2f} "
-                     f"| {c[4]:.0%}, {b[4]:.0%} | {c[5]:.0f}, {b[5]:.0f} |")
-    a, b = np.array(areas).T
-    walking = [sum(x >= walking_m for x in col) for col in np.array(at_end).T]
+    pairs = {s: (cells(own[s]), cells(base[s])) for s in done}
+    for s, (c, w) in pairs.items():
+        lines.append(f"| {s} | {c['area']:.2f}, {w['area']:.2f} | {c['first']}, {w['first']} | {c['end']:.2f}, "
+                     f"{w['end']:.2f} | {c['flattery']:+.2f}, {w['flattery']:+.2f} | {c['kept']:.0%}, {w['kept']:.0%} "
+                     f"| {c['minutes']:.0f}, {w['minutes']:.0f} |")
+    a, b = (np.array([pair[k]["area"] for pair in pairs.values()]) for k in (0, 1))
+    walking = [sum(pair[k]["end"] >= walking_m for pair in pairs.values()) for k in (0, 1)]
     if len(done) < len(seeds):
         decided = f"not decided ({len(done)} of {len(seeds)} seeds)"
     else:
