@@ -1062,9 +1062,10 @@ def regenerate_tables(root: Path) -> dict[Path, str]:
                     ("walk_offset10", "offset", "walk_amd"), ("walk_noise06", "noise", "walk_amd"),
                     ("walk_critic", "critic", "walk_amd"), ("walk_tries3", "tries", "walk_amd"),
                     ("walk_k480", "k480", "walk_amd"), ("walk_k480b16", "k480b16", "walk_amd"),
-                    ("walk_t40", "t40", "walk_k480b16")):           # part 28: AVX2 against the AVX512 baseline
+                    ("walk_t40", "t40", "walk_k480b16"),            # part 28: AVX2 against the AVX512 baseline
+                    ("walk_tries_p3_15", "tries_p3_15", "walk_k480b16")):   # part 33: AVX512 against AVX512
                 table = plain_rl_same_cpu_table(results / "panel_a_candidates", (variant,), baseline=baseline,
-                                                seeds_needed=10)    # parts 17-28: rules over seeds 0-9
+                                                seeds_needed=10)    # parts 17-33: rules over seeds 0-9
                 if table:
                     tables[results / f"plain_rl_panel_a_{name}.md"] = table + "\n" + plain_rl_targets_table(
                         results / "panel_a_candidates", (baseline, variant))
